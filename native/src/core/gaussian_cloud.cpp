@@ -1,0 +1,33 @@
+#include "raysplats/gaussian_cloud.h"
+
+#include "raysplats/errors.h"
+
+namespace raysplats {
+
+void GaussianCloud::resize(std::size_t n, int degree) {
+    if (degree < 0 || degree > 3) throw InvalidArgument("SH degree must be 0..3, got " + std::to_string(degree));
+    sh_degree = degree;
+    positions.assign(3 * n, 0.0f);
+    rotations.assign(4 * n, 0.0f);
+    for (std::size_t i = 0; i < n; ++i) rotations[4 * i] = 1.0f;
+    scales.assign(3 * n, 0.0f);
+    opacities.assign(n, 0.0f);
+    sh.assign(n * sh_coeff_count(degree) * 3, 0.0f);
+}
+
+void GaussianCloud::check_consistent() const {
+    const std::size_t n = size();
+    if (sh_degree < 0 || sh_degree > 3) throw InvalidArgument("SH degree must be 0..3, got " + std::to_string(sh_degree));
+    auto expect = [&](const std::vector<float>& a, std::size_t want, const char* name) {
+        if (a.size() != want)
+            throw InvalidArgument(std::string("Gaussian array '") + name + "' has " + std::to_string(a.size()) +
+                                  " values, expected " + std::to_string(want) + " for " + std::to_string(n) +
+                                  " Gaussians");
+    };
+    expect(positions, 3 * n, "positions");
+    expect(rotations, 4 * n, "rotations");
+    expect(scales, 3 * n, "scales");
+    expect(sh, n * sh_coeff_count(sh_degree) * 3, "sh");
+}
+
+}  // namespace raysplats

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs every Debian package RaySplats needs to build, run and test (DESIGN §3).
+# Idempotent and quick when everything is already there: apt is only called for missing packages.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config
+  blender python3-numpy python3-dev pybind11-dev
+  libembree-dev libglm-dev libtbb-dev
+  libopenmesh-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libdraco-dev draco
+  libzstd-dev zlib1g-dev
+  libgtest-dev libbenchmark-dev assimp-utils
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]})); then
+  echo "install_deps: installing ${missing[*]}"
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "install_deps: all ${#PACKAGES[@]} packages present"
+fi
