@@ -1,0 +1,297 @@
+#include "raysplats/polygon_bridge.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/linear_algebra.h"
+#include "raysplats/errors.h"
+#include "raysplats/spherical_harmonics.h"
+
+namespace raysplats {
+namespace {
+
+using la::Mat3;
+
+// Random Gaussians with centres in [-2, 2]^3, log-uniform scales in [0.05, 1], random rotations. Scales are
+// kept comparable to the centres so that the float32 vertex positions (as Blender stores them) resolve the
+// polygon to ~1e-7: the tests then measure the recovery, not float32 storage.
+GaussianCloud random_cloud(std::size_t n, int degree, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> pos(-2.0f, 2.0f), logs(-3.0f, 0.0f), op(0.05f, 1.0f), sh(-0.5f, 0.5f);
+    std::normal_distribution<float> g;
+    GaussianCloud c;
+    c.resize(n, degree);
+    for (std::size_t i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) c.positions[3 * i + k] = pos(rng), c.scales[3 * i + k] = std::exp(logs(rng));
+        float q[4] = {g(rng), g(rng), g(rng), g(rng)};
+        const float qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for (int k = 0; k < 4; ++k) c.rotations[4 * i + k] = q[k] / qn;
+        c.opacities[i] = op(rng);
+    }
+    for (float& v : c.sh) v = sh(rng);
+    return c;
+}
+
+Mat3 covariance(const float q[4], const float s[3]) {
+    const Mat3 r = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
+    Mat3 c;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            double acc = 0;
+            for (int k = 0; k < 3; ++k) acc += r(i, k) * double(s[k]) * s[k] * r(j, k);
+            c(i, j) = acc;
+        }
+    return c;
+}
+
+// Covariance restricted to the two largest axes: the part a flat polygon carries.
+Mat3 planar_covariance(const float q[4], const float s[3]) {
+    float t[3] = {s[0], s[1], s[2]};
+    int smallest = 0;
+    for (int k = 1; k < 3; ++k)
+        if (s[k] < s[smallest]) smallest = k;
+    t[smallest] = 0;
+    return covariance(q, t);
+}
+
+double relative_difference(const Mat3& a, const Mat3& b) {
+    double diff = 0, ref = 0;
+    for (int i = 0; i < 9; ++i) diff += (a.m[i] - b.m[i]) * (a.m[i] - b.m[i]), ref += b.m[i] * b.m[i];
+    return std::sqrt(diff / ref);
+}
+
+PolygonMeshView view_of(const SplatPolygons& p) {
+    PolygonMeshView v;
+    v.vertex_positions = p.vertex_positions.data();
+    v.vertex_count = p.vertex_positions.size() / 3;
+    v.corner_vertices = p.corner_vertices.data();
+    v.corner_count = p.corner_vertices.size();
+    v.face_corner_start = p.face_corner_start.data();
+    v.face_corner_count = p.face_corner_count.data();
+    v.face_count = p.face_corner_start.size();
+    return v;
+}
+
+Mat3 random_affine(std::mt19937& rng, bool reflect) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    Mat3 a;
+    do {
+        for (double& x : a.m) x = u(rng);
+        for (int i = 0; i < 3; ++i) a(i, i) += 1.5;
+    } while (std::abs(la::determinant(a)) < 0.2);
+    if ((la::determinant(a) < 0) != reflect) a.set_column(0, -a.column(0));
+    return a;
+}
+
+TEST(PolygonBridge, PolygonVerticesLieOnTheRhoEllipse) {
+    GaussianCloud c = random_cloud(50, 0, 1);
+    PolygonSettings settings{8, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    ASSERT_EQ(p.vertex_positions.size(), 50u * 8 * 3);
+    for (std::size_t i = 0; i < 50; ++i) {
+        // Mahalanobis distance of each vertex from the centre, in the polygon's plane, is rho.
+        const Mat3 r = la::quaternion_to_matrix(c.rotations[4 * i], c.rotations[4 * i + 1], c.rotations[4 * i + 2],
+                                                c.rotations[4 * i + 3]);
+        for (int k = 0; k < 8; ++k) {
+            la::Vec3 d(p.vertex_positions[3 * (8 * i + k)] - c.positions[3 * i],
+                       p.vertex_positions[3 * (8 * i + k) + 1] - c.positions[3 * i + 1],
+                       p.vertex_positions[3 * (8 * i + k) + 2] - c.positions[3 * i + 2]);
+            double m2 = 0;
+            for (int a = 0; a < 3; ++a) {
+                const double proj = la::dot(d, r.column(a)) / c.scales[3 * i + a];
+                m2 += proj * proj;
+            }
+            EXPECT_NEAR(std::sqrt(m2), 3.0, 1e-3);
+        }
+    }
+}
+
+TEST(PolygonBridge, RecoveryIsExactForEveryK) {
+    for (int k : {3, 4, 5, 8, 17, 64}) {
+        GaussianCloud c = random_cloud(200, 0, 100 + k);
+        PolygonSettings settings{k, 2.5f};
+        SplatPolygons p = gaussians_to_polygons(c, settings);
+        SplatFaceAttributesView attr;
+        attr.thickness = p.thickness.data();
+        RecoveryOptions options;
+        options.polygon = settings;
+        RecoveryStats stats;
+        GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+        ASSERT_EQ(r.size(), c.size());
+        EXPECT_EQ(stats.recovered, 200u);
+        for (std::size_t i = 0; i < c.size(); ++i) {
+            EXPECT_LT(relative_difference(covariance(&r.rotations[4 * i], &r.scales[3 * i]),
+                                          covariance(&c.rotations[4 * i], &c.scales[3 * i])),
+                      1e-5)
+                << "K=" << k << " face " << i;
+            for (int a = 0; a < 3; ++a) EXPECT_NEAR(r.positions[3 * i + a], c.positions[3 * i + a], 1e-6);
+        }
+    }
+}
+
+// The core property of DESIGN §5: an affine image of the polygon is the polygon of the affinely transformed
+// Gaussian. Applied to the mesh vertices (as a lattice or an edit would), including reflections.
+TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVertices) {
+    std::mt19937 rng(11);
+    for (bool reflect : {false, true}) {
+        GaussianCloud c = random_cloud(300, 0, reflect ? 5 : 6);
+        PolygonSettings settings{8, 3.0f};
+        SplatPolygons p = gaussians_to_polygons(c, settings);
+        std::vector<Mat3> maps(c.size());
+        for (std::size_t i = 0; i < c.size(); ++i) {
+            maps[i] = random_affine(rng, reflect);
+            for (int k = 0; k < 8; ++k) {
+                float* v = &p.vertex_positions[3 * (8 * i + k)];
+                const la::Vec3 x = maps[i] * la::Vec3(v[0], v[1], v[2]);
+                v[0] = float(x.x + 0.3), v[1] = float(x.y - 0.2), v[2] = float(x.z + 0.1);
+            }
+        }
+        RecoveryOptions options;
+        options.polygon = settings;
+        GaussianCloud r = recover_gaussians_from_polygons(view_of(p), {}, options);
+        for (std::size_t i = 0; i < c.size(); ++i) {
+            const float* q = &r.rotations[4 * i];
+            const Mat3 rot = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
+            EXPECT_NEAR(la::determinant(rot), 1.0, 1e-6);
+            const Mat3 expected = maps[i] * planar_covariance(&c.rotations[4 * i], &c.scales[3 * i]) * la::transpose(maps[i]);
+            EXPECT_LT(relative_difference(planar_covariance(q, &r.scales[3 * i]), expected), 1e-5) << "face " << i;
+            const la::Vec3 m = maps[i] * la::Vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+            EXPECT_NEAR(r.positions[3 * i], m.x + 0.3, 1e-5);
+            EXPECT_NEAR(r.positions[3 * i + 2], m.z + 0.1, 1e-5);
+        }
+    }
+}
+
+// Unedited faces give back the imported Gaussian bit for bit; an object-level affine map transforms the full
+// 3D covariance exactly: Σ' = A Σ A^T.
+TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovariance) {
+    GaussianCloud c = random_cloud(400, 0, 21);
+    PolygonSettings settings{8, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    SplatFaceAttributesView attr;
+    attr.opacity = c.opacities.data();
+    attr.thickness = p.thickness.data();
+    attr.rest_centers = c.positions.data();
+    attr.rest_rotations = c.rotations.data();
+    attr.rest_scales = c.scales.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    GaussianCloud same = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+    EXPECT_EQ(stats.unedited, 400u);
+    EXPECT_EQ(same.positions, c.positions);
+    EXPECT_EQ(same.rotations, c.rotations);
+    EXPECT_EQ(same.scales, c.scales);
+    EXPECT_EQ(same.opacities, c.opacities);
+
+    std::mt19937 rng(4);
+    for (int trial = 0; trial < 4; ++trial) {
+        Mat3 a = random_affine(rng, trial % 2 == 1);
+        if (trial == 2) {  // a pure rotation with uniform scale: the similarity path
+            a = la::quaternion_to_matrix(0.5, 0.5, -0.5, 0.5);
+            for (double& x : a.m) x *= 2.0;
+        }
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) options.mesh_to_output[4 * i + j] = a(i, j);
+        options.mesh_to_output[3] = 1.0, options.mesh_to_output[7] = -2.0, options.mesh_to_output[11] = 0.5;
+        GaussianCloud t = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+        EXPECT_EQ(stats.unedited, 400u);
+        for (std::size_t i = 0; i < c.size(); ++i) {
+            const Mat3 expected = a * covariance(&c.rotations[4 * i], &c.scales[3 * i]) * la::transpose(a);
+            EXPECT_LT(relative_difference(covariance(&t.rotations[4 * i], &t.scales[3 * i]), expected), 1e-5);
+            const la::Vec3 m = a * la::Vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+            EXPECT_NEAR(t.positions[3 * i + 1], m.y - 2.0, 1e-5);
+        }
+    }
+}
+
+TEST(PolygonBridge, DegenerateFacesDoNotCrashAndAreCounted) {
+    // Face 0: collinear; face 1: all vertices coincident; face 2: NaN vertex; face 3: a triangle; face 4:
+    // corner index out of range.
+    std::vector<float> v = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0,  // collinear
+                            5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5,  // coincident
+                            0, 0, 0, 1, 0, 0, NAN, 1, 0, 0, 1, 0,  // NaN
+                            0, 0, 0, 1, 0, 0, 0, 1, 0};            // triangle
+    std::vector<std::int32_t> corners(v.size() / 3);
+    for (std::size_t i = 0; i < corners.size(); ++i) corners[i] = std::int32_t(i);
+    corners.push_back(999);
+    corners.push_back(0);
+    corners.push_back(1);
+    std::vector<std::int32_t> start = {0, 4, 8, 12, 15}, count = {4, 4, 4, 3, 3};
+    PolygonMeshView mesh{v.data(), v.size() / 3, corners.data(), corners.size(), start.data(), count.data(), 5};
+    RecoveryOptions options;
+    RecoveryStats stats;
+    GaussianCloud r = recover_gaussians_from_polygons(mesh, {}, options, &stats);
+    EXPECT_EQ(r.size(), 3u);
+    EXPECT_EQ(stats.dropped, 2u);
+    EXPECT_EQ(stats.degenerate, 2u);
+    EXPECT_EQ(stats.recovered, 3u);
+    for (float x : r.scales) EXPECT_TRUE(std::isfinite(x) && x > 0);
+    for (float x : r.rotations) EXPECT_TRUE(std::isfinite(x));
+    EXPECT_NEAR(r.positions[3 * 1], 5.0f, 1e-6);
+    // The triangle: without stored attributes a Gaussian with the default opacity, centred at the centroid.
+    EXPECT_FLOAT_EQ(r.opacities[2], kNewFaceOpacity);
+    EXPECT_NEAR(r.positions[3 * 2], 1.0 / 3, 1e-6);
+}
+
+TEST(PolygonBridge, ViewDependentColourFollowsARotatedPolygon) {
+    GaussianCloud c = random_cloud(100, 3, 8);
+    PolygonSettings settings{8, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    // Rotate every polygon about its own centre by Q (as Blender's R in individual-origins mode would).
+    const Mat3 q = la::quaternion_to_matrix(std::cos(0.6), 0.3 * std::sin(0.6), -0.9 * std::sin(0.6),
+                                            std::sqrt(1 - 0.81 - 0.09) * std::sin(0.6));
+    for (std::size_t i = 0; i < c.size(); ++i)
+        for (int k = 0; k < 8; ++k) {
+            float* v = &p.vertex_positions[3 * (8 * i + k)];
+            const la::Vec3 centre(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+            const la::Vec3 x = q * (la::Vec3(v[0], v[1], v[2]) - centre) + centre;
+            v[0] = float(x.x), v[1] = float(x.y), v[2] = float(x.z);
+        }
+    SplatFaceAttributesView attr;
+    attr.sh_degree = 3;
+    attr.sh_local = p.sh_local.data();
+    attr.opacity = c.opacities.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options);
+    std::mt19937 rng(2);
+    std::normal_distribution<double> g;
+    for (std::size_t i = 0; i < c.size(); ++i)
+        for (int s = 0; s < 5; ++s) {
+            la::Vec3 d = la::normalized(la::Vec3(g(rng), g(rng), g(rng)));
+            const la::Vec3 back = la::transpose(q) * d;
+            const auto seen = evaluate_sh(3, &r.sh[48 * i], d.x, d.y, d.z);
+            const auto original = evaluate_sh(3, &c.sh[48 * i], back.x, back.y, back.z);
+            for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(seen[ch], original[ch], 1e-4) << "face " << i;
+        }
+}
+
+TEST(PolygonBridge, UntouchedSphericalHarmonicsSurviveTheRoundTrip) {
+    GaussianCloud c = random_cloud(100, 2, 9);
+    PolygonSettings settings{6, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    SplatFaceAttributesView attr;
+    attr.sh_degree = 2;
+    attr.sh_local = p.sh_local.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options);
+    for (std::size_t i = 0; i < c.sh.size(); ++i) EXPECT_NEAR(r.sh[i], c.sh[i], 1e-6 * (1 + std::abs(c.sh[i])));
+}
+
+TEST(PolygonBridge, BadSettingsThrow) {
+    GaussianCloud c = random_cloud(2, 0, 1);
+    EXPECT_THROW(gaussians_to_polygons(c, {2, 3.0f}), InvalidArgument);
+    EXPECT_THROW(gaussians_to_polygons(c, {65, 3.0f}), InvalidArgument);
+    EXPECT_THROW(gaussians_to_polygons(c, {8, 0.0f}), InvalidArgument);
+    EXPECT_THROW(gaussians_to_polygons(c, {8, NAN}), InvalidArgument);
+    RecoveryOptions options;
+    options.mesh_to_output[5] = NAN;
+    EXPECT_THROW(recover_gaussians_from_polygons({}, {}, options), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace raysplats
