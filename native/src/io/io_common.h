@@ -1,0 +1,103 @@
+// Private helpers shared by the splat file readers and writers (native/src/io): file access, atomic
+// writes, and the common repair / filter step every reader ends with. Not part of the public API.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "raysplats/errors.h"
+#include "raysplats/gaussian_cloud.h"
+#include "raysplats/splat_io.h"
+
+namespace raysplats {
+namespace io {
+
+// SH basis constant of degree 0 (DESIGN §4).
+constexpr double kShC0 = 0.28209479177387814;
+
+// Splats per task for tbb::parallel_for over per-splat work.
+constexpr std::size_t kGrain = 8192;
+
+// Read-only view of a whole file: memory mapped where possible. Throws FileFormatError naming the file
+// if it cannot be opened or read. An empty file gives size() == 0 and data() == nullptr.
+class FileBytes {
+public:
+    explicit FileBytes(const std::string& path);
+    ~FileBytes();
+    FileBytes(const FileBytes&) = delete;
+    FileBytes& operator=(const FileBytes&) = delete;
+
+    const std::uint8_t* data() const { return data_; }
+    std::size_t size() const { return size_; }
+    const std::string& path() const { return path_; }
+
+private:
+    std::string path_;
+    const std::uint8_t* data_ = nullptr;
+    std::size_t size_ = 0;
+    bool mapped_ = false;
+    std::vector<std::uint8_t> buffer_;  // used when mapping is not possible
+};
+
+// Writes a file atomically: everything goes to a temporary file in the target's folder, which commit()
+// flushes, syncs and renames over the target. If commit() is never reached (an exception, a failed write),
+// the destructor removes the temporary file and the target is untouched. All failures throw
+// FileFormatError naming the target path.
+class AtomicFileWriter {
+public:
+    explicit AtomicFileWriter(const std::string& path);
+    ~AtomicFileWriter();
+    AtomicFileWriter(const AtomicFileWriter&) = delete;
+    AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+    void write(const void* data, std::size_t size);
+    void commit();
+    const std::string& temp_path() const { return temp_path_; }
+
+private:
+    void fail(const std::string& what);
+    std::string path_, temp_path_;
+    int fd_ = -1;
+    bool committed_ = false;
+};
+
+// Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
+void check_writable(const GaussianCloud& cloud);
+
+// The last step of every reader. `cloud` holds every splat of the file with activations applied (linear
+// scale and opacity) but rotations not yet normalised. This
+//  - drops splats with a non-finite position, scale or rotation,
+//  - sets non-finite opacity / SH values to 0,
+//  - replaces zero quaternions by the identity and normalises the others,
+//  - drops splats with opacity < options.min_opacity, keeps the first options.max_count of the rest,
+// counting each repair in `report` (which is reset first; may be null).
+void finalize_cloud(GaussianCloud& cloud, const ReadOptions& options, LoadReport* report);
+
+// Lower-case extension with the dot (".ply"), or "" if none.
+std::string lower_extension(const std::string& path);
+
+// Little-endian loads/stores that do not depend on alignment.
+inline std::uint32_t load_u32le(const std::uint8_t* p) {
+    return std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8) | (std::uint32_t(p[2]) << 16) | (std::uint32_t(p[3]) << 24);
+}
+inline std::uint64_t load_u64le(const std::uint8_t* p) {
+    return std::uint64_t(load_u32le(p)) | (std::uint64_t(load_u32le(p + 4)) << 32);
+}
+inline void store_u32le(std::uint8_t* p, std::uint32_t v) {
+    p[0] = std::uint8_t(v), p[1] = std::uint8_t(v >> 8), p[2] = std::uint8_t(v >> 16), p[3] = std::uint8_t(v >> 24);
+}
+inline void store_u64le(std::uint8_t* p, std::uint64_t v) {
+    store_u32le(p, std::uint32_t(v));
+    store_u32le(p + 4, std::uint32_t(v >> 32));
+}
+inline void store_f32le(std::uint8_t* p, float v) {
+    std::uint32_t u;
+    std::memcpy(&u, &v, 4);
+    store_u32le(p, u);
+}
+
+}  // namespace io
+}  // namespace raysplats

@@ -1,0 +1,474 @@
+// INRIA 3DGS .ply reader and writer (DESIGN §4).
+//
+// Reader: ascii, binary_little_endian and binary_big_endian; properties looked up by name in any order; any
+// PLY scalar type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32, uint/uint32,
+// float/float32, double/float64) converted to float; extra properties ignored; elements before 'vertex'
+// are skipped and elements after it ignored. The file is memory mapped and binary records are decoded in
+// parallel (TBB) straight into the Gaussian arrays.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "io/io_common.h"
+#include "raysplats/splat_io.h"
+
+namespace raysplats {
+namespace {
+
+enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
+
+bool parse_ply_type(const std::string& s, PlyType& t) {
+    if (s == "char" || s == "int8") t = PlyType::Int8;
+    else if (s == "uchar" || s == "uint8") t = PlyType::UInt8;
+    else if (s == "short" || s == "int16") t = PlyType::Int16;
+    else if (s == "ushort" || s == "uint16") t = PlyType::UInt16;
+    else if (s == "int" || s == "int32") t = PlyType::Int32;
+    else if (s == "uint" || s == "uint32") t = PlyType::UInt32;
+    else if (s == "float" || s == "float32") t = PlyType::Float32;
+    else if (s == "double" || s == "float64") t = PlyType::Float64;
+    else return false;
+    return true;
+}
+
+std::size_t ply_type_size(PlyType t) {
+    switch (t) {
+        case PlyType::Int8:
+        case PlyType::UInt8: return 1;
+        case PlyType::Int16:
+        case PlyType::UInt16: return 2;
+        case PlyType::Int32:
+        case PlyType::UInt32:
+        case PlyType::Float32: return 4;
+        case PlyType::Float64: return 8;
+    }
+    return 0;
+}
+
+struct PlyProperty {
+    std::string name;
+    PlyType type = PlyType::Float32;
+    bool is_list = false;
+    PlyType count_type = PlyType::UInt8;
+    std::size_t offset = 0;  // within a binary record (fixed-size elements only)
+};
+
+struct PlyElement {
+    std::string name;
+    std::uint64_t count = 0;
+    std::vector<PlyProperty> props;
+    std::size_t record_size = 0;  // binary, when no list properties
+    bool has_list = false;
+};
+
+enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
+
+struct PlyHeader {
+    PlyFormat format = PlyFormat::BinaryLE;
+    std::vector<PlyElement> elements;
+    std::size_t data_offset = 0;  // first byte after end_header's newline
+};
+
+constexpr std::size_t kMaxHeaderBytes = 1 << 20;
+
+std::vector<std::string> split_ws(const std::string& line) {
+    std::vector<std::string> out;
+    std::size_t i = 0;
+    while (i < line.size()) {
+        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+        std::size_t j = i;
+        while (j < line.size() && !std::isspace(static_cast<unsigned char>(line[j]))) ++j;
+        if (j > i) out.push_back(line.substr(i, j - i));
+        i = j;
+    }
+    return out;
+}
+
+PlyHeader parse_header(const io::FileBytes& f) {
+    const std::string& path = f.path();
+    const char* d = reinterpret_cast<const char*>(f.data());
+    const std::size_t size = f.size();
+    if (size == 0) throw FileFormatError(path, "file is empty");
+    PlyHeader h;
+    std::size_t pos = 0;
+    bool have_format = false, ended = false;
+    int line_no = 0;
+    while (!ended) {
+        if (pos >= size) throw FileFormatError(path, "PLY header has no 'end_header' line (file ends in the header)", pos);
+        if (pos >= kMaxHeaderBytes)
+            throw FileFormatError(path, "PLY header has no 'end_header' line in its first " + std::to_string(kMaxHeaderBytes) +
+                                            " bytes", pos);
+        const std::size_t line_start = pos;
+        const void* nl = std::memchr(d + pos, '\n', std::min(size, kMaxHeaderBytes + 1) - pos);
+        const std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - d) : size;
+        std::string line(d + pos, end - pos);
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        pos = nl ? end + 1 : end;
+        ++line_no;
+        if (line_no == 1) {
+            if (line != "ply") throw FileFormatError(path, "not a PLY file: first line is not 'ply'", 0);
+            continue;
+        }
+        const auto tok = split_ws(line);
+        if (tok.empty()) continue;
+        const std::string& kw = tok[0];
+        if (kw == "comment" || kw == "obj_info") continue;
+        if (kw == "format") {
+            if (tok.size() < 2) throw FileFormatError(path, "PLY 'format' line has no format name", line_start);
+            if (tok[1] == "ascii") h.format = PlyFormat::Ascii;
+            else if (tok[1] == "binary_little_endian") h.format = PlyFormat::BinaryLE;
+            else if (tok[1] == "binary_big_endian") h.format = PlyFormat::BinaryBE;
+            else throw FileFormatError(path, "unknown PLY format '" + tok[1] + "'", line_start);
+            have_format = true;
+        } else if (kw == "element") {
+            if (!have_format) throw FileFormatError(path, "PLY header has no 'format' line before its first element", line_start);
+            if (tok.size() != 3) throw FileFormatError(path, "malformed PLY element line '" + line + "'", line_start);
+            PlyElement e;
+            e.name = tok[1];
+            const auto r = std::from_chars(tok[2].data(), tok[2].data() + tok[2].size(), e.count);
+            if (r.ec != std::errc() || r.ptr != tok[2].data() + tok[2].size())
+                throw FileFormatError(path, "bad element count '" + tok[2] + "' for element '" + e.name + "'", line_start);
+            h.elements.push_back(std::move(e));
+        } else if (kw == "property") {
+            if (h.elements.empty()) throw FileFormatError(path, "PLY property before any element", line_start);
+            PlyElement& e = h.elements.back();
+            PlyProperty p;
+            if (tok.size() >= 2 && tok[1] == "list") {
+                if (tok.size() != 5) throw FileFormatError(path, "malformed PLY list property line '" + line + "'", line_start);
+                if (!parse_ply_type(tok[2], p.count_type) || !parse_ply_type(tok[3], p.type))
+                    throw FileFormatError(path, "unknown PLY type in '" + line + "'", line_start);
+                p.is_list = true;
+                p.name = tok[4];
+                e.has_list = true;
+            } else {
+                if (tok.size() != 3) throw FileFormatError(path, "malformed PLY property line '" + line + "'", line_start);
+                if (!parse_ply_type(tok[1], p.type))
+                    throw FileFormatError(path, "unknown PLY type '" + tok[1] + "' of property '" + tok[2] + "'", line_start);
+                p.name = tok[2];
+                p.offset = e.record_size;
+                e.record_size += ply_type_size(p.type);
+            }
+            e.props.push_back(std::move(p));
+        } else if (kw == "end_header") {
+            ended = true;
+        } else {
+            throw FileFormatError(path, "unexpected PLY header line '" + line + "'", line_start);
+        }
+    }
+    if (!have_format) throw FileFormatError(path, "PLY header has no 'format' line", 0);
+    h.data_offset = pos;
+    return h;
+}
+
+template <bool BigEndian>
+inline double load_value(const std::uint8_t* p, PlyType t) {
+    std::uint8_t b[8];
+    const std::size_t n = ply_type_size(t);
+    if (BigEndian) {
+        for (std::size_t i = 0; i < n; ++i) b[i] = p[n - 1 - i];
+    } else {
+        std::memcpy(b, p, n);
+    }
+    switch (t) {
+        case PlyType::Int8: return double(static_cast<std::int8_t>(b[0]));
+        case PlyType::UInt8: return double(b[0]);
+        case PlyType::Int16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
+        case PlyType::UInt16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
+        case PlyType::Int32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
+        case PlyType::UInt32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
+        case PlyType::Float32: { float v; std::memcpy(&v, b, 4); return v; }
+        case PlyType::Float64: { double v; std::memcpy(&v, b, 8); return v; }
+    }
+    return 0.0;
+}
+
+// Canonical field order inside the reader: x y z, f_dc_0..2, opacity, scale_0..2, rot_0..3, f_rest_0..M-1.
+constexpr int kNumRequired = 14;
+const char* const kRequired[kNumRequired] = {"x",       "y",       "z",       "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                                             "scale_0", "scale_1", "scale_2", "rot_0",  "rot_1",  "rot_2",  "rot_3"};
+
+struct FieldMap {
+    std::vector<int> prop_index;  // canonical field -> index into the vertex element's properties
+    int degree = 0;
+    int rest_count = 0;
+};
+
+FieldMap map_fields(const std::string& path, const PlyElement& v) {
+    FieldMap m;
+    m.prop_index.assign(kNumRequired, -1);
+    std::vector<int> rest;
+    for (std::size_t i = 0; i < v.props.size(); ++i) {
+        const std::string& name = v.props[i].name;
+        for (int k = 0; k < kNumRequired; ++k)
+            if (name == kRequired[k]) {
+                if (m.prop_index[k] >= 0) throw FileFormatError(path, "property '" + name + "' appears twice in element 'vertex'");
+                m.prop_index[k] = int(i);
+            }
+        if (name.compare(0, 7, "f_rest_") == 0) {
+            int idx = -1;
+            const char* b = name.data() + 7;
+            const char* e = name.data() + name.size();
+            const auto r = std::from_chars(b, e, idx);
+            if (r.ec != std::errc() || r.ptr != e || idx < 0 || b == e)
+                throw FileFormatError(path, "unrecognised SH property '" + name + "' (expected f_rest_<index>)");
+            if (std::size_t(idx) >= rest.size()) rest.resize(std::size_t(idx) + 1, -1);
+            if (rest[std::size_t(idx)] >= 0) throw FileFormatError(path, "property '" + name + "' appears twice in element 'vertex'");
+            rest[std::size_t(idx)] = int(i);
+        }
+    }
+    for (int k = 0; k < kNumRequired; ++k)
+        if (m.prop_index[k] < 0)
+            throw FileFormatError(path, std::string("missing required property '") + kRequired[k] + "' in element 'vertex'");
+    int count = 0;
+    for (int r : rest) count += r >= 0;
+    if (count != 0 && count != 9 && count != 24 && count != 45)
+        throw FileFormatError(path, "element 'vertex' has " + std::to_string(count) +
+                                        " f_rest_* properties; expected 0, 9, 24 or 45 (SH degree 0, 1, 2 or 3)");
+    for (std::size_t k = 0; k < rest.size(); ++k)
+        if (rest[k] < 0)
+            throw FileFormatError(path, "f_rest_* properties are not numbered 0.." + std::to_string(count - 1) + ": f_rest_" +
+                                            std::to_string(k) + " is missing");
+    m.rest_count = count;
+    m.degree = count == 0 ? 0 : count == 9 ? 1 : count == 24 ? 2 : 3;
+    for (int r : rest) m.prop_index.push_back(r);
+    for (int idx : m.prop_index)
+        if (v.props[std::size_t(idx)].is_list)
+            throw FileFormatError(path, "property '" + v.props[std::size_t(idx)].name + "' of element 'vertex' is a list");
+    return m;
+}
+
+// Stores one splat from its canonical field values (activations applied here, repair in finalize_cloud).
+inline void store_splat(GaussianCloud& c, std::size_t i, const double* f, int K) {
+    for (int j = 0; j < 3; ++j) c.positions[3 * i + j] = float(f[j]);
+    float* sh = &c.sh[std::size_t(i) * K * 3];
+    for (int ch = 0; ch < 3; ++ch) sh[ch] = float(f[3 + ch]);
+    // f_rest is channel-major: f_rest_{ch*(K-1) + j} is coefficient j+1 of channel ch.
+    for (int ch = 0; ch < 3; ++ch)
+        for (int j = 0; j < K - 1; ++j) sh[(j + 1) * 3 + ch] = float(f[kNumRequired + ch * (K - 1) + j]);
+    c.opacities[i] = float(1.0 / (1.0 + std::exp(-f[6])));
+    for (int j = 0; j < 3; ++j) c.scales[3 * i + j] = float(std::exp(f[7 + j]));
+    for (int j = 0; j < 4; ++j) c.rotations[4 * i + j] = float(f[10 + j]);
+}
+
+template <bool BigEndian>
+void decode_binary(GaussianCloud& c, const std::uint8_t* base, std::size_t n, const PlyElement& v, const FieldMap& m) {
+    const int K = c.coeffs_per_channel();
+    const std::size_t nf = m.prop_index.size();
+    std::vector<std::size_t> offs(nf);
+    std::vector<PlyType> types(nf);
+    bool all_float_le = !BigEndian;
+    for (std::size_t k = 0; k < nf; ++k) {
+        const PlyProperty& p = v.props[std::size_t(m.prop_index[k])];
+        offs[k] = p.offset;
+        types[k] = p.type;
+        all_float_le &= p.type == PlyType::Float32;
+    }
+    const std::size_t rs = v.record_size;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
+        double f[kNumRequired + 45];
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const std::uint8_t* rec = base + i * rs;
+            if (all_float_le) {
+                for (std::size_t k = 0; k < nf; ++k) {
+                    float x;
+                    std::memcpy(&x, rec + offs[k], 4);
+                    f[k] = x;
+                }
+            } else {
+                for (std::size_t k = 0; k < nf; ++k) f[k] = load_value<BigEndian>(rec + offs[k], types[k]);
+            }
+            store_splat(c, i, f, K);
+        }
+    });
+}
+
+// ASCII reading: a cursor over whitespace-separated tokens.
+struct AsciiCursor {
+    const char* d;
+    std::size_t size, pos;
+    const std::string& path;
+
+    bool next(const char*& b, const char*& e) {
+        while (pos < size && std::isspace(static_cast<unsigned char>(d[pos]))) ++pos;
+        if (pos >= size) return false;
+        b = d + pos;
+        while (pos < size && !std::isspace(static_cast<unsigned char>(d[pos]))) ++pos;
+        e = d + pos;
+        return true;
+    }
+    double number(const char* what, std::uint64_t item) {
+        const char *b, *e;
+        if (!next(b, e))
+            throw FileFormatError(path, "file is truncated: ends in " + std::string(what) + " of element " + std::to_string(item), pos);
+        double v = 0.0;
+        const char* bb = (*b == '+') ? b + 1 : b;
+        const auto r = std::from_chars(bb, e, v);
+        if (r.ec == std::errc::result_out_of_range) {
+            v = (*bb == '-') ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+        } else if (r.ec != std::errc() || r.ptr != e) {
+            throw FileFormatError(path, "bad number '" + std::string(b, e) + "' in " + what + " of element " + std::to_string(item),
+                                  std::uint64_t(b - d));
+        }
+        return v;
+    }
+};
+
+void skip_ascii_element(AsciiCursor& cur, const PlyElement& e) {
+    for (std::uint64_t i = 0; i < e.count; ++i)
+        for (const PlyProperty& p : e.props) {
+            if (p.is_list) {
+                const double cnt = cur.number(("list count of property '" + p.name + "'").c_str(), i);
+                if (!(cnt >= 0) || cnt > 1e9)
+                    throw FileFormatError(cur.path, "bad list count in property '" + p.name + "'", cur.pos);
+                for (std::uint64_t k = 0; k < std::uint64_t(cnt); ++k) cur.number(("property '" + p.name + "'").c_str(), i);
+            } else {
+                cur.number(("property '" + p.name + "'").c_str(), i);
+            }
+        }
+}
+
+}  // namespace
+
+GaussianCloud read_ply(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    io::FileBytes f(path);
+    const PlyHeader h = parse_header(f);
+    std::size_t vi = h.elements.size();
+    for (std::size_t i = 0; i < h.elements.size(); ++i)
+        if (h.elements[i].name == "vertex") {
+            vi = i;
+            break;
+        }
+    if (vi == h.elements.size()) {
+        const std::string first = h.elements.empty() ? std::string("none") : "'" + h.elements[0].name + "'";
+        throw FileFormatError(path, "PLY file has no 'vertex' element (first element: " + first + ")");
+    }
+    const PlyElement& v = h.elements[vi];
+    const FieldMap m = map_fields(path, v);
+    const std::uint64_t n64 = v.count;
+    const std::size_t size = f.size();
+
+    GaussianCloud cloud;
+    if (h.format == PlyFormat::Ascii) {
+        AsciiCursor cur{reinterpret_cast<const char*>(f.data()), size, h.data_offset, path};
+        for (std::size_t i = 0; i < vi; ++i) skip_ascii_element(cur, h.elements[i]);
+        if (v.has_list)
+            for (const PlyProperty& p : v.props)
+                if (p.is_list) throw FileFormatError(path, "list property '" + p.name + "' in element 'vertex' is not supported");
+        // Every value takes at least 2 bytes (a digit and a separator): refuse impossible counts before allocating.
+        const std::uint64_t remaining = size - cur.pos;
+        const std::uint64_t nprops = v.props.size();
+        if (n64 > (remaining + 1) / (2 * nprops))
+            throw FileFormatError(path, "file is truncated: the header declares " + std::to_string(n64) + " vertices of " +
+                                            std::to_string(nprops) + " values but only " + std::to_string(remaining) +
+                                            " bytes of ASCII data follow",
+                                  cur.pos);
+        const std::size_t n = static_cast<std::size_t>(n64);
+        cloud.resize(n, m.degree);
+        const int K = cloud.coeffs_per_channel();
+        std::vector<double> all(v.props.size());
+        double fv[kNumRequired + 45];
+        for (std::size_t i = 0; i < n; ++i) {
+            for (std::size_t k = 0; k < v.props.size(); ++k) all[k] = cur.number(("property '" + v.props[k].name + "'").c_str(), i);
+            for (std::size_t k = 0; k < m.prop_index.size(); ++k) fv[k] = all[std::size_t(m.prop_index[k])];
+            store_splat(cloud, i, fv, K);
+        }
+    } else {
+        std::uint64_t off = h.data_offset;
+        const bool be = h.format == PlyFormat::BinaryBE;
+        // Skip elements before 'vertex' (fixed-size ones in one step, ones with lists record by record).
+        for (std::size_t ei = 0; ei < vi; ++ei) {
+            const PlyElement& e = h.elements[ei];
+            if (!e.has_list) {
+                if (e.record_size && e.count > (size - std::min<std::uint64_t>(off, size)) / e.record_size)
+                    throw FileFormatError(path, "file is truncated in element '" + e.name + "'", off);
+                off += e.count * e.record_size;
+                continue;
+            }
+            for (std::uint64_t r = 0; r < e.count; ++r)
+                for (const PlyProperty& p : e.props) {
+                    if (!p.is_list) {
+                        off += ply_type_size(p.type);
+                    } else {
+                        const std::size_t cs = ply_type_size(p.count_type);
+                        if (off + cs > size) throw FileFormatError(path, "file is truncated in element '" + e.name + "'", off);
+                        const double cnt = be ? load_value<true>(f.data() + off, p.count_type)
+                                              : load_value<false>(f.data() + off, p.count_type);
+                        if (!(cnt >= 0)) throw FileFormatError(path, "negative list count in element '" + e.name + "'", off);
+                        off += cs + std::uint64_t(cnt) * ply_type_size(p.type);
+                    }
+                    if (off > size) throw FileFormatError(path, "file is truncated in element '" + e.name + "'", off);
+                }
+        }
+        if (v.has_list)
+            for (const PlyProperty& p : v.props)
+                if (p.is_list) throw FileFormatError(path, "list property '" + p.name + "' in element 'vertex' is not supported");
+        const std::uint64_t rs = v.record_size;
+        const std::uint64_t available = size > off ? size - off : 0;
+        // Refuse a count the file cannot hold before allocating anything for it.
+        if (n64 > available / rs)
+            throw FileFormatError(path, "file is truncated: the header declares " + std::to_string(n64) + " vertices of " +
+                                            std::to_string(rs) + " bytes (" + std::to_string(n64) + " x " + std::to_string(rs) +
+                                            " bytes) but only " + std::to_string(available) + " bytes follow the header",
+                                  off);
+        const std::size_t n = static_cast<std::size_t>(n64);
+        cloud.resize(n, m.degree);
+        if (be) decode_binary<true>(cloud, f.data() + off, n, v, m);
+        else decode_binary<false>(cloud, f.data() + off, n, v, m);
+    }
+    io::finalize_cloud(cloud, options, report);
+    return cloud;
+}
+
+void write_ply(const std::string& path, const GaussianCloud& cloud) {
+    io::check_writable(cloud);
+    const std::size_t n = cloud.size();
+    const int K = cloud.coeffs_per_channel();
+    const int rest = 3 * (K - 1);
+    std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) + "\n";
+    for (const char* p : {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"})
+        header += std::string("property float ") + p + "\n";
+    for (int j = 0; j < rest; ++j) header += "property float f_rest_" + std::to_string(j) + "\n";
+    for (const char* p : {"opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"})
+        header += std::string("property float ") + p + "\n";
+    header += "end_header\n";
+    const std::size_t nfloats = 9 + std::size_t(rest) + 8;
+    const std::size_t rs = nfloats * 4;
+
+    io::AtomicFileWriter out(path);
+    out.write(header.data(), header.size());
+    constexpr std::size_t kChunk = 1 << 16;
+    std::vector<std::uint8_t> buf(std::min(n, kChunk) * rs);
+    for (std::size_t c0 = 0; c0 < n; c0 += kChunk) {
+        const std::size_t c1 = std::min(n, c0 + kChunk);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                std::uint8_t* p = buf.data() + (i - c0) * rs;
+                auto put = [&p](float v) {
+                    io::store_f32le(p, v);
+                    p += 4;
+                };
+                for (int j = 0; j < 3; ++j) put(cloud.positions[3 * i + j]);
+                put(0.0f), put(0.0f), put(0.0f);
+                const float* sh = &cloud.sh[i * std::size_t(K) * 3];
+                for (int ch = 0; ch < 3; ++ch) put(sh[ch]);
+                for (int ch = 0; ch < 3; ++ch)
+                    for (int j = 1; j < K; ++j) put(sh[j * 3 + ch]);
+                // Clamp before logit / log so that the file holds no Inf (fmin/fmax also map NaN to the bound).
+                const double a = std::fmin(std::fmax(double(cloud.opacities[i]), 1e-7), 1.0 - 1e-7);
+                put(float(std::log(a / (1.0 - a))));
+                for (int j = 0; j < 3; ++j) put(float(std::log(std::fmax(double(cloud.scales[3 * i + j]), 1e-30))));
+                for (int j = 0; j < 4; ++j) put(cloud.rotations[4 * i + j]);
+            }
+        });
+        out.write(buf.data(), (c1 - c0) * rs);
+    }
+    out.commit();
+}
+
+}  // namespace raysplats

@@ -1,0 +1,294 @@
+// Format dispatch, file access, atomic writes and the repair / filter step shared by all splat readers.
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "io/io_common.h"
+#include "raysplats/splat_io.h"
+
+namespace raysplats {
+namespace io {
+
+// ---------------------------------------------------------------------------------------------------------
+// FileBytes
+
+FileBytes::FileBytes(const std::string& path) : path_(path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw FileFormatError(path, std::string("cannot open file: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) {
+        const int e = errno;
+        ::close(fd);
+        throw FileFormatError(path, std::string("cannot stat file: ") + std::strerror(e));
+    }
+    if (S_ISDIR(st.st_mode)) {
+        ::close(fd);
+        throw FileFormatError(path, "is a directory, not a file");
+    }
+    size_ = static_cast<std::size_t>(st.st_size);
+    if (size_ == 0) {
+        ::close(fd);
+        return;
+    }
+    void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (p != MAP_FAILED) {
+        ::madvise(p, size_, MADV_SEQUENTIAL | MADV_WILLNEED);
+        data_ = static_cast<const std::uint8_t*>(p);
+        mapped_ = true;
+        ::close(fd);
+        return;
+    }
+    // Not mappable (a pipe, some network file systems): read it.
+    buffer_.resize(size_);
+    std::size_t done = 0;
+    while (done < size_) {
+        const ssize_t r = ::read(fd, buffer_.data() + done, size_ - done);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) {
+            const int e = errno;
+            ::close(fd);
+            throw FileFormatError(path, std::string("read error: ") + (r == 0 ? "unexpected end of file" : std::strerror(e)),
+                                  done);
+        }
+        done += static_cast<std::size_t>(r);
+    }
+    ::close(fd);
+    data_ = buffer_.data();
+}
+
+FileBytes::~FileBytes() {
+    if (mapped_) ::munmap(const_cast<std::uint8_t*>(data_), size_);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// AtomicFileWriter
+
+namespace {
+std::atomic<unsigned> g_temp_counter{0};
+}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path) : path_(path) {
+    if (path.empty()) throw FileFormatError(path, "cannot write: empty file name");
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw FileFormatError(path, "cannot write: is a directory");
+    // The temporary file lives in the target's folder so that rename() is atomic (same file system).
+    // Created with mode 0666 so that the process umask applies, as for any ordinarily created file.
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        temp_path_ = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(g_temp_counter++);
+        fd_ = ::open(temp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd_ >= 0) return;
+        if (errno != EEXIST) break;
+    }
+    const int e = errno;
+    temp_path_.clear();
+    throw FileFormatError(path, std::string("cannot write: cannot create a temporary file beside it: ") + std::strerror(e));
+}
+
+AtomicFileWriter::~AtomicFileWriter() {
+    if (fd_ >= 0) ::close(fd_);
+    if (!committed_ && !temp_path_.empty()) ::unlink(temp_path_.c_str());
+}
+
+void AtomicFileWriter::fail(const std::string& what) {
+    const int e = errno;
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    if (!temp_path_.empty()) ::unlink(temp_path_.c_str());
+    temp_path_.clear();
+    throw FileFormatError(path_, "cannot write: " + what + ": " + std::strerror(e));
+}
+
+void AtomicFileWriter::write(const void* data, std::size_t size) {
+    if (fd_ < 0) throw FileFormatError(path_, "cannot write: file already closed");
+    const char* p = static_cast<const char*>(data);
+    while (size > 0) {
+        const ssize_t w = ::write(fd_, p, std::min<std::size_t>(size, std::size_t(1) << 30));
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) fail("write to temporary file failed");
+        p += w;
+        size -= static_cast<std::size_t>(w);
+    }
+}
+
+void AtomicFileWriter::commit() {
+    if (fd_ < 0) throw FileFormatError(path_, "cannot write: file already closed");
+    if (::fsync(fd_) != 0) fail("fsync of temporary file failed");
+    const int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0) fail("close of temporary file failed");
+    if (::rename(temp_path_.c_str(), path_.c_str()) != 0) fail("rename of temporary file over the target failed");
+    committed_ = true;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Validation and repair
+
+void check_writable(const GaussianCloud& cloud) { cloud.check_consistent(); }
+
+void finalize_cloud(GaussianCloud& c, const ReadOptions& options, LoadReport* report) {
+    if (report) *report = LoadReport{};
+    const std::size_t n = c.size();
+    const std::size_t shn = std::size_t(c.coeffs_per_channel()) * 3;
+    std::vector<std::uint8_t> keep(n, 1);
+    struct Counts {
+        std::size_t dropped = 0, repaired = 0, zero_rot = 0, below = 0;
+    };
+    tbb::combinable<Counts> counts;
+    const float min_op = options.min_opacity;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
+        Counts& k = counts.local();
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            float* p = &c.positions[3 * i];
+            float* s = &c.scales[3 * i];
+            float* q = &c.rotations[4 * i];
+            bool finite = true;
+            for (int j = 0; j < 3; ++j) finite &= std::isfinite(p[j]) && std::isfinite(s[j]);
+            for (int j = 0; j < 4; ++j) finite &= std::isfinite(q[j]);
+            if (!finite) {
+                keep[i] = 0;
+                ++k.dropped;
+                continue;
+            }
+            bool repaired = false;
+            float& op = c.opacities[i];
+            if (!std::isfinite(op)) op = 0.0f, repaired = true;
+            float* sh = &c.sh[i * shn];
+            for (std::size_t j = 0; j < shn; ++j)
+                if (!std::isfinite(sh[j])) sh[j] = 0.0f, repaired = true;
+            if (repaired) ++k.repaired;
+            const double n2 = double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3];
+            if (!(n2 > 1e-30)) {
+                q[0] = 1.0f, q[1] = q[2] = q[3] = 0.0f;
+                ++k.zero_rot;
+            } else {
+                const double inv = 1.0 / std::sqrt(n2);
+                for (int j = 0; j < 4; ++j) q[j] = float(q[j] * inv);
+            }
+            if (min_op > 0.0f && op < min_op) {
+                keep[i] = 0;
+                ++k.below;
+            }
+        }
+    });
+    Counts total;
+    counts.combine_each([&](const Counts& k) {
+        total.dropped += k.dropped, total.repaired += k.repaired, total.zero_rot += k.zero_rot, total.below += k.below;
+    });
+    if (report) {
+        report->non_finite_dropped = total.dropped;
+        report->non_finite_repaired = total.repaired;
+        report->zero_rotation_repaired = total.zero_rot;
+        if (total.dropped)
+            report->warnings.push_back(std::to_string(total.dropped) +
+                                       " splat(s) with NaN/Inf in position, scale or rotation dropped");
+        if (total.repaired)
+            report->warnings.push_back(std::to_string(total.repaired) +
+                                       " splat(s) with NaN/Inf in opacity or colour: those values set to 0");
+        if (total.zero_rot)
+            report->warnings.push_back(std::to_string(total.zero_rot) +
+                                       " splat(s) with a zero quaternion: rotation set to identity");
+    }
+
+    // Compact: the kept splats in file order, at most max_count of them.
+    const std::size_t limit = options.max_count ? options.max_count : n;
+    std::vector<std::size_t> src;
+    if (total.dropped == 0 && total.below == 0) {
+        if (n <= limit) return;
+    }
+    src.reserve(std::min(n, limit));
+    for (std::size_t i = 0; i < n && src.size() < limit; ++i)
+        if (keep[i]) src.push_back(i);
+    const std::size_t m = src.size();
+    GaussianCloud out;
+    out.sh_degree = c.sh_degree;
+    out.positions.resize(3 * m);
+    out.rotations.resize(4 * m);
+    out.scales.resize(3 * m);
+    out.opacities.resize(m);
+    out.sh.resize(m * shn);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t d = r.begin(); d != r.end(); ++d) {
+            const std::size_t s = src[d];
+            std::memcpy(&out.positions[3 * d], &c.positions[3 * s], 3 * sizeof(float));
+            std::memcpy(&out.rotations[4 * d], &c.rotations[4 * s], 4 * sizeof(float));
+            std::memcpy(&out.scales[3 * d], &c.scales[3 * s], 3 * sizeof(float));
+            out.opacities[d] = c.opacities[s];
+            std::memcpy(&out.sh[shn * d], &c.sh[shn * s], shn * sizeof(float));
+        }
+    });
+    c = std::move(out);
+}
+
+std::string lower_extension(const std::string& path) {
+    const std::size_t slash = path.find_last_of('/');
+    const std::size_t dot = path.find_last_of('.');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+    std::string e = path.substr(dot);
+    for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return e;
+}
+
+}  // namespace io
+
+// -------------------------------------------------------------------------------------------------------------
+// Public dispatch
+
+SplatFormat splat_format_from_extension(const std::string& path) {
+    const std::string e = io::lower_extension(path);
+    if (e == ".ply") return SplatFormat::Ply;
+    if (e == ".splat") return SplatFormat::Splat;
+    if (e == ".spz") return SplatFormat::Spz;
+    throw FileFormatError(path, "unknown splat format: extension '" + e + "' is not .ply, .splat or .spz");
+}
+
+const char* splat_format_name(SplatFormat format) {
+    switch (format) {
+        case SplatFormat::Ply: return "ply";
+        case SplatFormat::Splat: return "splat";
+        case SplatFormat::Spz: return "spz";
+    }
+    return "unknown";
+}
+
+GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    std::uint8_t head[4] = {0, 0, 0, 0};
+    std::size_t got = 0;
+    {
+        io::FileBytes probe(path);  // maps lazily: cheap, and gives the uniform "cannot open" errors
+        if (probe.size() == 0) throw FileFormatError(path, "file is empty");
+        got = std::min<std::size_t>(4, probe.size());
+        std::memcpy(head, probe.data(), got);
+    }
+    if (got >= 3 && std::memcmp(head, "ply", 3) == 0) return read_ply(path, options, report);
+    if (got >= 4 && std::memcmp(head, "NGSP", 4) == 0) return read_spz(path, options, report);
+    if (got >= 2 && head[0] == 0x1f && head[1] == 0x8b) return read_spz(path, options, report);
+    const std::string e = io::lower_extension(path);
+    if (e == ".splat") return read_dot_splat(path, options, report);
+    if (e == ".ply" || e == ".spz")
+        throw FileFormatError(path, "not a " + e.substr(1) + " file: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
+    throw FileFormatError(path,
+                          "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic) and extension '" +
+                              e + "' is not .splat",
+                          0);
+}
+
+void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
+    switch (splat_format_from_extension(path)) {
+        case SplatFormat::Ply: return write_ply(path, cloud);
+        case SplatFormat::Splat: return write_dot_splat(path, cloud);
+        case SplatFormat::Spz: return write_spz(path, cloud);
+    }
+}
+
+}  // namespace raysplats
