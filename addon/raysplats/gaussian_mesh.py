@@ -1,0 +1,140 @@
+# The Blender side of the polygon bridge (DESIGN §5): writes the native core's polygon arrays into a Mesh
+# with bulk foreach_set, and reads any (evaluated) mesh back into arrays for recovery with foreach_get.
+import numpy as np
+
+# Face-domain attributes of a Gaussian mesh. SH coefficient k (k = 0 is the DC term) lives in "gs_sh_<k>";
+# coefficients k >= 1 are in the face's local frame.
+ATTR_OPACITY = "gs_opacity"
+ATTR_THICKNESS = "gs_thickness"
+ATTR_SH_PREFIX = "gs_sh_"
+# The Gaussian each face was made from; lets unedited faces export bit-exactly (see polygon_bridge.h).
+ATTR_REST_CENTER = "gs_rest_center"
+ATTR_REST_ROTATION = "gs_rest_rotation"  # quaternion w, x, y, z stored as a 4-float colour attribute
+ATTR_REST_SCALE = "gs_rest_scale"
+# Corner domain: display colour (linear RGB from the SH DC term, A = opacity) and local polygon UVs.
+ATTR_COLOR = "gs_color"
+UV_MAP = "gs_uv"
+
+_WIDTH_OF = {"FLOAT": 1, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4}
+_PROPERTY_OF = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR": "color"}
+
+
+def sh_attribute_name(k):
+    return f"{ATTR_SH_PREFIX}{k}"
+
+
+def _write_attribute(mesh, name, data_type, domain, values):
+    attribute = mesh.attributes.get(name) or mesh.attributes.new(name, data_type, domain)
+    attribute.data.foreach_set(_PROPERTY_OF[data_type], np.ascontiguousarray(values, dtype=np.float32).ravel())
+    return attribute
+
+
+def _read_attribute(mesh, name, data_type, domain, count):
+    attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type != data_type or attribute.domain != domain:
+        return None
+    width = _WIDTH_OF[data_type]
+    out = np.empty(count * width, dtype=np.float32)
+    attribute.data.foreach_get(_PROPERTY_OF[data_type], out)
+    return out.reshape((count, width)) if width > 1 else out
+
+
+def fill_mesh(mesh, polygons, cloud):
+    """Fills an empty Mesh with the polygons of gaussians_to_polygons() and the per-face attributes."""
+    vertex_positions = polygons["vertex_positions"]
+    corner_count = len(polygons["corner_vertices"])
+    face_count = len(polygons["face_corner_start"])
+
+    mesh.vertices.add(len(vertex_positions))
+    mesh.vertices.foreach_set("co", vertex_positions.ravel())
+    mesh.edges.add(len(polygons["edge_vertices"]))
+    mesh.edges.foreach_set("vertices", polygons["edge_vertices"].ravel())
+    mesh.loops.add(corner_count)
+    mesh.loops.foreach_set("vertex_index", polygons["corner_vertices"])
+    mesh.loops.foreach_set("edge_index", polygons["corner_edges"])
+    mesh.polygons.add(face_count)
+    mesh.polygons.foreach_set("loop_start", polygons["face_corner_start"])
+    try:  # Blender 3.x needs the corner count per face; 4.x derives it from loop_start (read-only there).
+        mesh.polygons.foreach_set("loop_total", polygons["face_corner_count"])
+    except (AttributeError, TypeError, RuntimeError):
+        pass
+
+    _write_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", cloud["opacities"])
+    _write_attribute(mesh, ATTR_THICKNESS, "FLOAT", "FACE", polygons["thickness"])
+    sh_local = polygons["sh_local"]
+    for k in range(sh_local.shape[1]):
+        _write_attribute(mesh, sh_attribute_name(k), "FLOAT_VECTOR", "FACE", sh_local[:, k, :])
+    _write_attribute(mesh, ATTR_REST_CENTER, "FLOAT_VECTOR", "FACE", cloud["positions"])
+    _write_attribute(mesh, ATTR_REST_ROTATION, "FLOAT_COLOR", "FACE", cloud["rotations"])
+    _write_attribute(mesh, ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", cloud["scales"])
+
+    color = mesh.color_attributes.new(ATTR_COLOR, "FLOAT_COLOR", "CORNER")
+    color.data.foreach_set("color", polygons["corner_colors"].ravel())
+    try:
+        mesh.color_attributes.active_color = color
+        mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
+    except AttributeError:
+        pass
+    uv_layer = mesh.uv_layers.new(name=UV_MAP)
+    uv_layer.data.foreach_set("uv", polygons["corner_uvs"].ravel())
+    mesh.update()
+
+
+def mesh_arrays(mesh):
+    """Vertex positions, corner vertices, face corner starts and counts of any mesh, as numpy arrays."""
+    vertex_positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", vertex_positions)
+    corner_vertices = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    face_corner_start = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_start", face_corner_start)
+    face_corner_count = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", face_corner_count)
+    return vertex_positions.reshape((-1, 3)), corner_vertices, face_corner_start, face_corner_count
+
+
+def face_attributes(mesh, sh_degree):
+    """The stored per-face Gaussian attributes (None where a modifier or edit removed them)."""
+    faces = len(mesh.polygons)
+    coeffs = (sh_degree + 1) ** 2
+    sh = []
+    for k in range(coeffs):
+        values = _read_attribute(mesh, sh_attribute_name(k), "FLOAT_VECTOR", "FACE", faces)
+        sh.append(values if values is not None else np.zeros((faces, 3), dtype=np.float32))
+    return {
+        "opacity": _read_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", faces),
+        "thickness": _read_attribute(mesh, ATTR_THICKNESS, "FLOAT", "FACE", faces),
+        "sh_local": np.stack(sh, axis=1) if faces else np.zeros((0, coeffs, 3), dtype=np.float32),
+        "rest_centers": _read_attribute(mesh, ATTR_REST_CENTER, "FLOAT_VECTOR", "FACE", faces),
+        "rest_rotations": _read_attribute(mesh, ATTR_REST_ROTATION, "FLOAT_COLOR", "FACE", faces),
+        "rest_scales": _read_attribute(mesh, ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", faces),
+    }
+
+
+def is_gaussian_object(obj):
+    return obj is not None and obj.type == "MESH" and getattr(obj, "raysplats", None) is not None \
+        and obj.raysplats.is_gaussian
+
+
+def recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers=True):
+    """Recovers the Gaussians of one Gaussian object (evaluated: modifiers, shape keys, armatures) in the
+    space given by mesh_to_output (4x4, applied to the mesh's own coordinates). Returns the core's dict."""
+    settings = obj.raysplats
+    if obj.mode == "EDIT":
+        obj.update_from_editmode()
+    if apply_modifiers:
+        evaluated = obj.evaluated_get(depsgraph)
+        mesh = evaluated.to_mesh()
+        release = evaluated.to_mesh_clear
+    else:
+        mesh, release = obj.data, None
+    try:
+        vertex_positions, corner_vertices, face_corner_start, face_corner_count = mesh_arrays(mesh)
+        attributes = face_attributes(mesh, settings.sh_degree)
+    finally:
+        if release is not None:
+            release()
+    return core.recover_gaussians(
+        vertex_positions, corner_vertices, face_corner_start, face_corner_count,
+        settings.vertices_per_polygon, settings.radius, np.ascontiguousarray(mesh_to_output, dtype=np.float64),
+        **attributes)

@@ -1,0 +1,72 @@
+# The material imported Gaussian objects get: unlit splat colour with the exact Gaussian falloff
+# alpha = a * exp(-|uv|^2 / 2), uv being the corner's local polygon coordinates (DESIGN §5), so Material
+# Preview (EEVEE) shows the splats as they are.
+import bpy
+
+from .gaussian_mesh import ATTR_COLOR, UV_MAP
+
+MATERIAL_NAME = "RaySplats Gaussian"
+
+
+def gaussian_material():
+    material = bpy.data.materials.get(MATERIAL_NAME)
+    if material is not None:
+        return material
+    material = bpy.data.materials.new(MATERIAL_NAME)
+    material.use_nodes = True
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+
+    output = nodes.new("ShaderNodeOutputMaterial")
+    output.location = (800, 0)
+    color = nodes.new("ShaderNodeVertexColor")
+    color.layer_name = ATTR_COLOR
+    color.location = (-600, 200)
+    uv = nodes.new("ShaderNodeUVMap")
+    uv.uv_map = UV_MAP
+    uv.location = (-800, -100)
+    dot = nodes.new("ShaderNodeVectorMath")
+    dot.operation = "DOT_PRODUCT"
+    dot.location = (-600, -100)
+    half = nodes.new("ShaderNodeMath")
+    half.operation = "MULTIPLY"
+    half.inputs[1].default_value = -0.5
+    half.location = (-400, -100)
+    falloff = nodes.new("ShaderNodeMath")
+    falloff.operation = "EXPONENT"
+    falloff.location = (-200, -100)
+    alpha = nodes.new("ShaderNodeMath")
+    alpha.operation = "MULTIPLY"
+    alpha.use_clamp = True
+    alpha.location = (0, 0)
+    emission = nodes.new("ShaderNodeEmission")
+    emission.location = (200, 200)
+    transparent = nodes.new("ShaderNodeBsdfTransparent")
+    transparent.location = (200, -150)
+    mix = nodes.new("ShaderNodeMixShader")
+    mix.location = (500, 0)
+
+    links.new(uv.outputs["UV"], dot.inputs[0])
+    links.new(uv.outputs["UV"], dot.inputs[1])
+    links.new(dot.outputs["Value"], half.inputs[0])
+    links.new(half.outputs[0], falloff.inputs[0])
+    links.new(falloff.outputs[0], alpha.inputs[0])
+    links.new(color.outputs["Alpha"], alpha.inputs[1])
+    links.new(color.outputs["Color"], emission.inputs["Color"])
+    links.new(alpha.outputs[0], mix.inputs["Fac"])
+    links.new(transparent.outputs[0], mix.inputs[1])
+    links.new(emission.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], output.inputs["Surface"])
+
+    # EEVEE transparency: blend_method until 4.1, surface_render_method from 4.2 on.
+    if hasattr(material, "surface_render_method"):
+        material.surface_render_method = "BLENDED"
+    if hasattr(material, "blend_method"):
+        try:
+            material.blend_method = "BLEND"
+        except TypeError:
+            pass
+    if hasattr(material, "shadow_method"):
+        material.shadow_method = "NONE"
+    material.diffuse_color = (0.8, 0.8, 0.8, 1.0)
+    return material

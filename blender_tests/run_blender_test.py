@@ -1,0 +1,45 @@
+# Runs one test module inside Blender:
+#   blender -b -noaudio --factory-startup --python-exit-code 1 --python run_blender_test.py -- \
+#       test_x.py --addon-dir addon --data-dir ../shared/data --tmp-dir /tmp/x
+# Registers the add-on from the source tree, runs the module's unittest cases, and raises if any failed so
+# that Blender exits with code 1.
+import argparse
+import importlib.util
+import os
+import sys
+import unittest
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser()
+    parser.add_argument("script")
+    parser.add_argument("--addon-dir", required=True)
+    parser.add_argument("--data-dir", required=True)
+    parser.add_argument("--tmp-dir", required=True)
+    parser.add_argument("-k", dest="pattern", default=None, help="run only tests whose name contains this")
+    args = parser.parse_args(argv)
+
+    os.makedirs(args.tmp_dir, exist_ok=True)
+    os.environ["RAYSPLATS_DATA_DIR"] = os.path.abspath(args.data_dir)
+    os.environ["RAYSPLATS_TMP_DIR"] = os.path.abspath(args.tmp_dir)
+    sys.path.insert(0, os.path.abspath(args.addon_dir))
+    sys.path.insert(0, os.path.dirname(os.path.abspath(args.script)))
+    import raysplats
+    raysplats.register()
+
+    spec = importlib.util.spec_from_file_location("blender_test_module", args.script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    loader = unittest.TestLoader()
+    if args.pattern:
+        loader.testNamePatterns = [f"*{args.pattern}*"]
+    suite = loader.loadTestsFromModule(module)
+    result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+    print(f"{result.testsRun - len(result.failures) - len(result.errors)} passed, "
+          f"{len(result.failures) + len(result.errors)} failed")
+    if not result.wasSuccessful() or result.testsRun == 0:
+        raise SystemExit(1)
+
+
+main()
