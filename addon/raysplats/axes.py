@@ -35,3 +35,17 @@ def blender_to_file(up_axis):
 def world_matrix(obj):
     """The object's world matrix as float64 4x4."""
     return np.array(obj.matrix_world, dtype=np.float64)
+
+
+def mesh_to_file(obj, up_axis):
+    """Map from the object's mesh coordinates to the file's convention: blender_to_file(up_axis) @ world.
+
+    Blender keeps matrices in float32, so a -90° import rotation carries cos(-π/2) ≈ -4.4e-8 terms; composed
+    with the exact inverse conversion they leave entries far below float32 resolution, which would move
+    every Gaussian of an untouched scene by ~1e-7 of its distance from the origin. Entries smaller than
+    float32 epsilon times the matrix's scale are below what the stored matrix can express, so they are
+    snapped to zero; the untouched scene then maps by the exact identity."""
+    m = blender_to_file(up_axis) @ world_matrix(obj)
+    linear = m[:3, :3]
+    linear[np.abs(linear) < np.finfo(np.float32).eps * np.abs(linear).max()] = 0.0
+    return m

@@ -29,7 +29,7 @@ def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUT
     parts, stats = [], {}
     for obj in objects:
         axis = obj.raysplats.up_axis if up_axis == "AUTO" else up_axis
-        mesh_to_output = axes.blender_to_file(axis) @ axes.world_matrix(obj)
+        mesh_to_output = axes.mesh_to_file(obj, axis)
         part = gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
         for key, value in part["stats"].items():
             stats[key] = stats.get(key, 0) + value

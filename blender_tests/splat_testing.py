@@ -1,0 +1,98 @@
+# Shared helpers of the Blender tests: data paths, a fresh scene, and an independent numpy reference of the
+# Gaussian model (covariances, SH evaluation) to check exported files against.
+import os
+
+import bpy
+import numpy as np
+
+DATA_DIR = os.environ.get("RAYSPLATS_DATA_DIR", "")
+TMP_DIR = os.environ.get("RAYSPLATS_TMP_DIR", "/tmp")
+
+
+def data_file(name):
+    path = os.path.join(DATA_DIR, name)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"test data '{path}' is missing (see shared/data/README.md)")
+    return path
+
+
+def tmp_file(name):
+    return os.path.join(TMP_DIR, name)
+
+
+def reset_scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def native():
+    from raysplats import native as native_module
+    return native_module.core()
+
+
+def rotation_matrices(quaternions):
+    q = np.asarray(quaternions, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
+
+
+def covariances(cloud, planar=False):
+    """Σ = R diag(s²) Rᵀ per Gaussian; planar=True keeps only the two largest axes (what a polygon carries)."""
+    r = rotation_matrices(cloud["rotations"])
+    s2 = np.asarray(cloud["scales"], dtype=np.float64) ** 2
+    if planar:
+        s2 = s2.copy()
+        s2[np.arange(len(s2)), np.argmin(s2, axis=1)] = 0.0
+    return np.einsum("nij,nj,nkj->nik", r, s2, r)
+
+
+def relative_errors(actual, expected):
+    """Per-item Frobenius relative error of stacks of matrices or vectors."""
+    actual = np.asarray(actual, dtype=np.float64).reshape(len(actual), -1)
+    expected = np.asarray(expected, dtype=np.float64).reshape(len(expected), -1)
+    return np.linalg.norm(actual - expected, axis=1) / np.maximum(np.linalg.norm(expected, axis=1), 1e-30)
+
+
+# Reference 3DGS SH basis (Kerbl et al. 2023, utils/sh_utils.py), written out independently of the core.
+C0 = 0.28209479177387814
+C1 = 0.4886025119029199
+C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
+C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154, -0.4570457994644658,
+      1.445305721320277, -0.5900435899266435)
+
+
+def sh_colors(sh, directions):
+    """Colour of each Gaussian (sh: N x coeffs x 3) seen along unit directions (N x 3), without the clamp."""
+    x, y, z = directions[:, 0:1], directions[:, 1:2], directions[:, 2:3]
+    coeffs = sh.shape[1]
+    basis = [np.full_like(x, C0)]
+    if coeffs > 1:
+        basis += [-C1 * y, C1 * z, -C1 * x]
+    if coeffs > 4:
+        xx, yy, zz = x * x, y * y, z * z
+        basis += [C2[0] * x * y, C2[1] * y * z, C2[2] * (2 * zz - xx - yy), C2[3] * x * z, C2[4] * (xx - yy)]
+    if coeffs > 9:
+        basis += [C3[0] * y * (3 * xx - yy), C3[1] * x * y * z, C3[2] * y * (4 * zz - xx - yy),
+                  C3[3] * z * (2 * zz - 3 * xx - 3 * yy), C3[4] * x * (4 * zz - xx - yy), C3[5] * z * (xx - yy),
+                  C3[6] * x * (xx - 3 * yy)]
+    b = np.concatenate(basis, axis=1)  # N x coeffs
+    return 0.5 + np.einsum("nk,nkc->nc", b, sh.astype(np.float64))
+
+
+def import_file(name, **options):
+    result = bpy.ops.import_scene.gaussian_splats(filepath=data_file(name), **options)
+    assert result == {"FINISHED"}, result
+    return bpy.context.view_layer.objects.active
+
+
+def export_file(name, **options):
+    path = tmp_file(name)
+    if os.path.exists(path):
+        os.remove(path)
+    result = bpy.ops.export_scene.gaussian_splats(filepath=path, **options)
+    assert result == {"FINISHED"}, result
+    return native().read_splats(path)

@@ -1,0 +1,105 @@
+# Import every real scene, export it untouched, and check that the Gaussians come back unchanged.
+import unittest
+
+import bpy
+import numpy as np
+
+import splat_testing as st
+
+# (file, splats, SH degree) as documented in shared/data/README.md.
+REAL_FILES = [
+    ("small_sh3_inria.ply", 9080, 3),
+    ("donut_sh0.ply", 45624, 0),
+    ("unicorn_sh3_reordered.ply", 49602, 3),
+    ("small.splat", 22764, 0),
+    ("biker_v4.spz", 152746, 0),
+]
+
+
+class ImportExport(unittest.TestCase):
+    def setUp(self):
+        st.reset_scene()
+
+    def test_every_real_file_imports_as_one_polygon_per_gaussian(self):
+        for name, count, degree in REAL_FILES:
+            with self.subTest(name=name):
+                st.reset_scene()
+                obj = st.import_file(name)
+                mesh = obj.data
+                self.assertEqual(len(mesh.polygons), count)
+                self.assertEqual(len(mesh.vertices), 8 * count)
+                self.assertTrue(obj.raysplats.is_gaussian)
+                self.assertEqual(obj.raysplats.sh_degree, degree)
+                self.assertAlmostEqual(obj.rotation_euler.x, -np.pi / 2, places=6)  # -Y up by default
+                for k in range((degree + 1) ** 2):
+                    self.assertIn(f"gs_sh_{k}", mesh.attributes)
+                self.assertIn("gs_color", mesh.color_attributes)
+                self.assertIn("gs_uv", mesh.uv_layers)
+                self.assertEqual(mesh.materials[0].name, "RaySplats Gaussian")
+                # Colour attribute alpha is the opacity of the face's Gaussian.
+                cloud = st.native().read_splats(st.data_file(name))
+                colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
+                mesh.color_attributes["gs_color"].data.foreach_get("color", colors)
+                np.testing.assert_allclose(colors.reshape(-1, 8, 4)[:, 0, 3], cloud["opacities"], rtol=1e-6)
+
+    def test_untouched_scene_exports_the_gaussians_it_imported(self):
+        for name, _, _ in REAL_FILES:
+            for extension in (".ply",):
+                with self.subTest(name=name):
+                    st.reset_scene()
+                    st.import_file(name)
+                    original = st.native().read_splats(st.data_file(name))
+                    exported = st.export_file("untouched" + extension)
+                    self.assertEqual(len(exported["opacities"]), len(original["opacities"]))
+                    cov_err = st.relative_errors(st.covariances(exported), st.covariances(original))
+                    self.assertLess(cov_err.max(), 1e-5, f"{name}: covariance")
+                    np.testing.assert_allclose(exported["positions"], original["positions"], rtol=1e-5, atol=1e-6)
+                    np.testing.assert_allclose(exported["opacities"], original["opacities"], rtol=1e-5, atol=1e-7)
+                    np.testing.assert_allclose(exported["sh"], original["sh"], rtol=1e-5, atol=1e-6)
+
+    def test_export_to_splat_and_spz_round_trips_within_quantisation(self):
+        st.import_file("small_sh3_inria.ply")
+        original = st.native().read_splats(st.data_file("small_sh3_inria.ply"))
+        for extension, position_tol in ((".splat", 1e-6), (".spz", 2e-3)):
+            with self.subTest(extension=extension):
+                exported = st.export_file("roundtrip" + extension)
+                self.assertEqual(len(exported["opacities"]), 9080)
+                np.testing.assert_allclose(exported["positions"], original["positions"], atol=position_tol)
+
+    def test_import_options(self):
+        obj = st.import_file("small_sh3_inria.ply", vertices_per_polygon=5, radius=2.0, up_axis="Z",
+                             max_count=1000)
+        self.assertEqual(len(obj.data.polygons), 1000)
+        self.assertEqual(len(obj.data.vertices), 5000)
+        self.assertEqual(obj.raysplats.vertices_per_polygon, 5)
+        self.assertAlmostEqual(obj.rotation_euler.x, 0.0)
+        original = st.native().read_splats(st.data_file("small_sh3_inria.ply"))
+        exported = st.export_file("options.ply")
+        cov_err = st.relative_errors(st.covariances(exported), st.covariances(original)[:1000])
+        self.assertLess(cov_err.max(), 1e-5)
+        st.reset_scene()
+        obj = st.import_file("small_sh3_inria.ply", min_opacity=0.5)
+        self.assertEqual(len(obj.data.polygons), int((original["opacities"] >= 0.5).sum()))
+
+    def test_bad_file_reports_an_error_and_adds_nothing(self):
+        path = st.tmp_file("truncated.ply")
+        with open(st.data_file("small_sh3_inria.ply"), "rb") as source, open(path, "wb") as bad:
+            bad.write(source.read(5000))
+        objects_before = len(bpy.data.objects)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.import_scene.gaussian_splats(filepath=path)
+        self.assertIn("truncated.ply", str(raised.exception))
+        self.assertEqual(len(bpy.data.objects), objects_before)
+        self.assertEqual(len(bpy.data.meshes), 0)
+
+    def test_export_without_gaussians_is_a_clear_error(self):
+        bpy.ops.mesh.primitive_cube_add()
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("nothing.ply"))
+        self.assertIn("Nothing to export", str(raised.exception))
+
+    def test_unknown_extension_is_a_clear_error(self):
+        st.import_file("small.splat")
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("scene.xyz"))
+        self.assertIn("unknown splat format", str(raised.exception))
