@@ -46,7 +46,10 @@ def covariances(cloud, planar=False):
     s2 = np.asarray(cloud["scales"], dtype=np.float64) ** 2
     if planar:
         s2 = s2.copy()
-        s2[np.arange(len(s2)), np.argmin(s2, axis=1)] = 0.0
+        # The import spans the polygon with the two largest axes, ties going to the lower index, so the
+        # dropped axis is the smallest with ties going to the highest index (isotropic Gaussians exist).
+        smallest = 2 - np.argmin(s2[:, ::-1], axis=1)
+        s2[np.arange(len(s2)), smallest] = 0.0
     return np.einsum("nij,nj,nkj->nik", r, s2, r)
 
 

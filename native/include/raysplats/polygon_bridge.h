@@ -72,7 +72,7 @@ struct SplatFaceAttributesView {
     // The Gaussian each face was made from (centre, rotation wxyz, scales). When a face's vertices are
     // bit-identical to gaussian_polygon() of these, the face is unedited and this exact Gaussian is used,
     // so an untouched scene exports exactly what it imported despite float32 vertex positions.
-    // A zero rotation marks a face the user added: it gets default attributes.
+    // Zero rest scales (what Blender gives faces the user adds) mark a new face: it gets default attributes.
     const float* rest_centers = nullptr;     // F * 3
     const float* rest_rotations = nullptr;   // F * 4
     const float* rest_scales = nullptr;      // F * 3

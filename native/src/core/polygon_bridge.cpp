@@ -350,13 +350,15 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             }
 
             const float* rest_q = attr.rest_rotations ? &attr.rest_rotations[4 * f] : nullptr;
-            // Without rest attributes every face is taken as a Gaussian; with them, a zero rotation marks a new face.
-            const bool is_added = rest_q && rest_q[0] == 0 && rest_q[1] == 0 && rest_q[2] == 0 && rest_q[3] == 0;
+            const float* rest_s = attr.rest_scales ? &attr.rest_scales[3 * f] : nullptr;
+            // Without rest attributes every face is taken as a Gaussian; with them, zero rest scales (the value
+            // Blender gives new faces) mark a face the user added.
+            const bool is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
             const double thickness = (attr.thickness && !is_added) ? attr.thickness[f] : 0.0;
 
             FaceGaussian g;
             bool exact_rest = false;
-            if (rest_q && !is_added && count == k_rest && attr.rest_centers && attr.rest_scales) {
+            if (rest_q && rest_s && !is_added && count == k_rest && attr.rest_centers) {
                 polygon_of_gaussian(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], angles, rest_polygon);
                 exact_rest = true;
                 for (int k = 0; k < count && exact_rest; ++k) {
