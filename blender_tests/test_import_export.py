@@ -30,7 +30,9 @@ class ImportExport(unittest.TestCase):
                 self.assertEqual(len(mesh.vertices), 8 * count)
                 self.assertTrue(obj.raysplats.is_gaussian)
                 self.assertEqual(obj.raysplats.sh_degree, degree)
-                self.assertAlmostEqual(obj.rotation_euler.x, -np.pi / 2, places=6)  # -Y up by default
+                # Automatic up axis: -Y up (COLMAP) for .ply/.splat, +Y up (RUB) for .spz.
+                self.assertAlmostEqual(obj.rotation_euler.x, (1 if name.endswith(".spz") else -1) * np.pi / 2,
+                                       places=6)
                 for k in range((degree + 1) ** 2):
                     self.assertIn(f"gs_sh_{k}", mesh.attributes)
                 self.assertIn("gs_color", mesh.color_attributes)

@@ -12,6 +12,18 @@ UP_AXIS_ITEMS = (
     ("Z", "Z up (Blender)", "The file is already Z up: no conversion"),
 )
 
+# Import default: by format. INRIA .ply and .splat scenes keep COLMAP's camera convention (x right, y down,
+# z forward: -Y up); SPZ stores RUB (x right, y up, z back: +Y up), per Niantic's format description.
+IMPORT_UP_AXIS_ITEMS = (("AUTO", "Automatic", "-Y up for .ply and .splat (COLMAP), +Y up for .spz (RUB)"),) \
+    + UP_AXIS_ITEMS
+
+
+def resolve_import_up_axis(up_axis, filepath):
+    if up_axis != "AUTO":
+        return up_axis
+    return "Y" if filepath.lower().endswith(".spz") else "-Y"
+
+
 # file coordinates -> Blender coordinates, and the object's Euler X rotation that performs it.
 _FILE_TO_BLENDER = {
     "-Y": (np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64), -math.pi / 2),

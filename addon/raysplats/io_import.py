@@ -11,11 +11,12 @@ from .progress import StageProgress
 SPLAT_EXTENSIONS = (".ply", ".splat", ".spz")
 
 
-def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="-Y",
+def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="AUTO",
                            min_opacity=0.0, max_count=0):
     """Imports a splat file as a new Gaussian object in the active collection.
     Returns (object, warnings, stage timings). Raises on bad input; nothing is added then."""
     core = native.core()
+    up_axis = axes.resolve_import_up_axis(up_axis, filepath)
     name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
         progress.stage("read file")
@@ -70,7 +71,7 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         name="Polygon Radius", default=3.0, min=0.5, max=6.0,
         description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")
     up_axis: EnumProperty(
-        name="Up Axis", items=axes.UP_AXIS_ITEMS, default="-Y",
+        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="AUTO",
         description="Up direction in the file; the object is rotated (not baked) so that it stands upright")
     min_opacity: FloatProperty(
         name="Minimum Opacity", default=0.0, min=0.0, max=1.0,

@@ -1,0 +1,124 @@
+# The RaySplats demo, headless: import a real trained splat scene, edit it with Blender tools, render it and
+# export it back to splat formats.
+#   blender -b --factory-startup --python-exit-code 1 --python examples/demo.py -- \
+#       --data-dir ../shared/data --out-dir demo_output [--scene biker_v4.spz] [--samples 16]
+import argparse
+import math
+import os
+import sys
+import time
+
+import bpy
+import mathutils
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(description="RaySplats demo: import, edit, render, export")
+    parser.add_argument("--data-dir", default=os.path.join(HERE, "..", "..", "shared", "data"))
+    parser.add_argument("--out-dir", default=os.path.join(HERE, "..", "demo_output"))
+    parser.add_argument("--scene", default="biker_v4.spz")
+    parser.add_argument("--resolution", type=int, nargs=2, default=(640, 360))
+    parser.add_argument("--samples", type=int, default=8)
+    return parser.parse_args(argv)
+
+
+def enable_addon():
+    """Uses the installed add-on if there is one, else the one in this source tree."""
+    try:
+        import raysplats  # noqa: F401  (installed and enabled by scripts/install_addon.sh)
+        if not hasattr(bpy.types.Object, "raysplats"):
+            raysplats.register()
+    except ImportError:
+        sys.path.insert(0, os.path.join(HERE, "..", "addon"))
+        import raysplats
+        raysplats.register()
+
+
+def frame_camera(obj):
+    """A camera looking at the bulk of the splats (5th-95th percentile box, robust to floaters)."""
+    corners = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.vertices.foreach_get("co", corners)
+    world = np.array(obj.matrix_world)
+    points = corners.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3]
+    low, high = np.percentile(points, 5, axis=0), np.percentile(points, 95, axis=0)
+    centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    bpy.context.scene.collection.objects.link(camera)
+    camera.location = centre + np.array([0.0, -1.1 * size, 0.35 * size])
+    direction = mathutils.Vector(centre) - camera.location
+    camera.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()  # camera looks down its -Z
+    camera.data.clip_start, camera.data.clip_end = size * 1e-3, size * 100
+    bpy.context.scene.camera = camera
+    return camera
+
+
+def main():
+    args = parse_args()
+    os.makedirs(args.out_dir, exist_ok=True)
+    enable_addon()
+    from raysplats import io_export, io_import
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    enable_addon()
+    scene_path = os.path.join(args.data_dir, args.scene)
+    t0 = time.perf_counter()
+
+    # 1. Import: one polygon per Gaussian, upright (the up axis follows the format's convention).
+    bpy.ops.import_scene.gaussian_splats(filepath=scene_path)
+    obj = bpy.context.view_layer.objects.active
+    print(f"demo: imported {len(obj.data.polygons):,} Gaussians from {args.scene}")
+
+    # 2. Edit with Blender tools: crop away the lowest fifth of the splats (a ground/floater clean-up),
+    #    turn the object 30° and scale it up.
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="DESELECT")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    centres = np.empty(len(obj.data.polygons) * 3, dtype=np.float32)
+    obj.data.polygons.foreach_get("center", centres)
+    world = np.array(obj.matrix_world)
+    heights = (centres.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3])[:, 2]
+    obj.data.polygons.foreach_set("select", heights < np.percentile(heights, 20))
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.delete(type="FACE")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    obj.rotation_euler.z += math.radians(30)
+    obj.scale = (1.2, 1.2, 1.2)
+    print(f"demo: edited: {len(obj.data.polygons):,} Gaussians left after the crop, rotated 30°, scaled 1.2")
+
+    # 3. Render. The RaySplats engine is used when it is available; until then Cycles renders the polygons
+    #    with the Gaussian-falloff material (a preview of the splats, not the ray-traced Gaussians).
+    scene = bpy.context.scene
+    frame_camera(obj)
+    engines = {e.bl_idname for e in bpy.types.RenderEngine.__subclasses__()}
+    scene.render.engine = "RAYSPLATS" if "RAYSPLATS" in engines else "CYCLES"
+    if scene.render.engine == "CYCLES":
+        scene.cycles.samples = args.samples
+        scene.cycles.transparent_max_bounces = 64
+        scene.cycles.device = "CPU"
+        scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise
+    scene.render.resolution_x, scene.render.resolution_y = args.resolution
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    world = bpy.data.worlds.new("World")
+    world.color = (0.05, 0.05, 0.05)
+    scene.world = world
+    render_path = os.path.join(args.out_dir, "render.png")
+    scene.render.filepath = render_path
+    t_render = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    print(f"demo: rendered {render_path} with {scene.render.engine} in {time.perf_counter() - t_render:.1f} s")
+
+    # 4. Export the edited scene back to splat formats (edits applied, file convention restored).
+    for extension in (".ply", ".spz"):
+        path = os.path.join(args.out_dir, "edited_" + os.path.splitext(args.scene)[0] + extension)
+        count, stats, _ = io_export.export_gaussian_splats(bpy.context, path)
+        print(f"demo: exported {count:,} Gaussians to {path} ({os.path.getsize(path) / 1e6:.1f} MB)")
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.join(args.out_dir, "demo.blend"))
+    print(f"demo: done in {time.perf_counter() - t0:.1f} s; outputs in {args.out_dir}")
+
+
+main()
