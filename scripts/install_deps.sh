@@ -5,7 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ninja-build pkg-config
-  blender python3-numpy python3-dev pybind11-dev
+  blender python3-numpy python3-dev python3-venv pybind11-dev
   libembree-dev libglm-dev libtbb-dev
   libopenmesh-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libdraco-dev draco
   libzstd-dev zlib1g-dev

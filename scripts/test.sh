@@ -5,6 +5,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 "$root/scripts/install_deps.sh"
-"$root/scripts/build.sh" "$root/build"
+# Blender 4.2 LTS (PyPI bpy) beside Debian's 3.4, when PyPI is reachable: registers the bpy4.* tests.
+bpy4_python=$("$root/scripts/setup_bpy4.sh")
+"$root/scripts/build.sh" "$root/build" -DRAYSPLATS_BPY4_PYTHON="$bpy4_python"
 cd "$root/build"
 ctest --output-on-failure -j 2 "$@"

@@ -383,9 +383,12 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             float* out_scale = &cloud.scales[3 * f];
             if (identity && exact_rest) {
                 // Bit-exact pass-through of the imported Gaussian (translation applied if any).
-                const Vec3 m = g.center + t;
-                out_pos[0] = float(m.x), out_pos[1] = float(m.y), out_pos[2] = float(m.z);
-                if (t.x == 0 && t.y == 0 && t.z == 0) std::memcpy(out_pos, &attr.rest_centers[3 * f], 3 * sizeof(float));
+                if (t.x == 0 && t.y == 0 && t.z == 0) {
+                    std::memcpy(out_pos, &attr.rest_centers[3 * f], 3 * sizeof(float));
+                } else {
+                    const Vec3 m = g.center + t;
+                    out_pos[0] = float(m.x), out_pos[1] = float(m.y), out_pos[2] = float(m.z);
+                }
                 std::memcpy(out_rot, rest_q, 4 * sizeof(float));
                 std::memcpy(out_scale, &attr.rest_scales[3 * f], 3 * sizeof(float));
             } else {
