@@ -35,7 +35,12 @@ def main():
     if args.pattern:
         loader.testNamePatterns = [f"*{args.pattern}*"]
     suite = loader.loadTestsFromModule(module)
-    result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+    try:
+        result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+    finally:
+        # Blender-as-a-module (PyPI bpy) crashes at interpreter exit while add-on classes are still
+        # registered, as Blender itself would unregister them on quit; do it here.
+        raysplats.unregister()
     print(f"{result.testsRun - len(result.failures) - len(result.errors)} passed, "
           f"{len(result.failures) + len(result.errors)} failed")
     if not result.wasSuccessful() or result.testsRun == 0:
