@@ -41,14 +41,7 @@ int main(int argc, char** argv) {
         const double t_poly = best_of(3, [&] { polygons = raysplats::gaussians_to_polygons(cloud, settings); });
         std::printf("  gaussians -> polygons   %8.3f s  %6.2f M splats/s\n", t_poly, n / t_poly / 1e6);
 
-        raysplats::PolygonMeshView mesh;
-        mesh.vertex_positions = polygons.vertex_positions.data();
-        mesh.vertex_count = polygons.vertex_positions.size() / 3;
-        mesh.corner_vertices = polygons.corner_vertices.data();
-        mesh.corner_count = polygons.corner_vertices.size();
-        mesh.face_corner_start = polygons.face_corner_start.data();
-        mesh.face_corner_count = polygons.face_corner_count.data();
-        mesh.face_count = polygons.face_corner_start.size();
+        const raysplats::PolygonMeshView mesh = raysplats::mesh_view(polygons);
         raysplats::SplatFaceAttributesView attr;
         attr.opacity = cloud.opacities.data();
         attr.thickness = polygons.thickness.data();

@@ -62,18 +62,6 @@ double relative_difference(const Mat3& a, const Mat3& b) {
     return std::sqrt(diff / ref);
 }
 
-PolygonMeshView view_of(const SplatPolygons& p) {
-    PolygonMeshView v;
-    v.vertex_positions = p.vertex_positions.data();
-    v.vertex_count = p.vertex_positions.size() / 3;
-    v.corner_vertices = p.corner_vertices.data();
-    v.corner_count = p.corner_vertices.size();
-    v.face_corner_start = p.face_corner_start.data();
-    v.face_corner_count = p.face_corner_count.data();
-    v.face_count = p.face_corner_start.size();
-    return v;
-}
-
 Mat3 random_affine(std::mt19937& rng, bool reflect) {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     Mat3 a;
@@ -118,7 +106,7 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
         RecoveryOptions options;
         options.polygon = settings;
         RecoveryStats stats;
-        GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+        GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
         ASSERT_EQ(r.size(), c.size());
         EXPECT_EQ(stats.recovered, 200u);
         for (std::size_t i = 0; i < c.size(); ++i) {
@@ -150,7 +138,7 @@ TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVertices) {
         }
         RecoveryOptions options;
         options.polygon = settings;
-        GaussianCloud r = recover_gaussians_from_polygons(view_of(p), {}, options);
+        GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), {}, options);
         for (std::size_t i = 0; i < c.size(); ++i) {
             const float* q = &r.rotations[4 * i];
             const Mat3 rot = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
@@ -179,7 +167,7 @@ TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovari
     RecoveryOptions options;
     options.polygon = settings;
     RecoveryStats stats;
-    GaussianCloud same = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+    GaussianCloud same = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
     EXPECT_EQ(stats.unedited, 400u);
     EXPECT_EQ(same.positions, c.positions);
     EXPECT_EQ(same.rotations, c.rotations);
@@ -196,7 +184,7 @@ TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovari
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) options.mesh_to_output[4 * i + j] = a(i, j);
         options.mesh_to_output[3] = 1.0, options.mesh_to_output[7] = -2.0, options.mesh_to_output[11] = 0.5;
-        GaussianCloud t = recover_gaussians_from_polygons(view_of(p), attr, options, &stats);
+        GaussianCloud t = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
         EXPECT_EQ(stats.unedited, 400u);
         for (std::size_t i = 0; i < c.size(); ++i) {
             const Mat3 expected = a * covariance(&c.rotations[4 * i], &c.scales[3 * i]) * la::transpose(a);
@@ -256,7 +244,7 @@ TEST(PolygonBridge, ViewDependentColourFollowsARotatedPolygon) {
     attr.opacity = c.opacities.data();
     RecoveryOptions options;
     options.polygon = settings;
-    GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options);
+    GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options);
     std::mt19937 rng(2);
     std::normal_distribution<double> g;
     for (std::size_t i = 0; i < c.size(); ++i)
@@ -278,7 +266,7 @@ TEST(PolygonBridge, UntouchedSphericalHarmonicsSurviveTheRoundTrip) {
     attr.sh_local = p.sh_local.data();
     RecoveryOptions options;
     options.polygon = settings;
-    GaussianCloud r = recover_gaussians_from_polygons(view_of(p), attr, options);
+    GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options);
     for (std::size_t i = 0; i < c.sh.size(); ++i) EXPECT_NEAR(r.sh[i], c.sh[i], 1e-6 * (1 + std::abs(c.sh[i])));
 }
 

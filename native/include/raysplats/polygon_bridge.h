@@ -63,6 +63,9 @@ struct PolygonMeshView {
     std::size_t face_count = 0;
 };
 
+// A view of polygons made by gaussians_to_polygons (for recovering from them without Blender).
+PolygonMeshView mesh_view(const SplatPolygons& polygons);
+
 // Per-face attributes stored on import; any pointer may be null (then defaults apply).
 struct SplatFaceAttributesView {
     const float* opacity = nullptr;          // F

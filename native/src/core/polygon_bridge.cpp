@@ -288,6 +288,18 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
     return out;
 }
 
+PolygonMeshView mesh_view(const SplatPolygons& p) {
+    PolygonMeshView v;
+    v.vertex_positions = p.vertex_positions.data();
+    v.vertex_count = p.vertex_positions.size() / 3;
+    v.corner_vertices = p.corner_vertices.data();
+    v.corner_count = p.corner_vertices.size();
+    v.face_corner_start = p.face_corner_start.data();
+    v.face_corner_count = p.face_corner_count.data();
+    v.face_count = p.face_corner_start.size();
+    return v;
+}
+
 GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const SplatFaceAttributesView& attr,
                                               const RecoveryOptions& options, RecoveryStats* stats_out) {
     options.polygon.validate();
