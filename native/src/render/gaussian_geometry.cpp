@@ -26,14 +26,24 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
     m[2] = glm::vec3(g.row0.z, g.row1.z, g.row2.z);  // glm is column-major: m[c][r] = row r, column c
     const glm::mat3 l = glm::inverse(m);
+    // Support: Mahalanobis radius 3, tightened to where a * G reaches 1/255 (hits below are skipped anyway):
+    // a exp(-r^2 / 2) = 1/255  <=>  r^2 = 2 ln(255 a). Gaussians that never reach 1/255 get an invalid box, which
+    // Embree leaves out of the BVH.
+    const float r2 = std::min(kGaussianSupportSq, 2.0f * std::log(255.0f * g.opacity));
+    RTCBounds* b = args->bounds_o;
+    if (!(r2 > 0.0f)) {
+        b->lower_x = b->lower_y = b->lower_z = std::numeric_limits<float>::infinity();
+        b->upper_x = b->upper_y = b->upper_z = -std::numeric_limits<float>::infinity();
+        return;
+    }
+    const float radius = std::sqrt(r2);
     glm::vec3 half;
     for (int j = 0; j < 3; ++j) {
         float s = l[0][j] * l[0][j] + l[1][j] * l[1][j];
         if (!set->flat) s += l[2][j] * l[2][j];
-        half[j] = 3.0f * std::sqrt(s);
+        half[j] = radius * std::sqrt(s);
     }
     if (!std::isfinite(half.x + half.y + half.z)) half = glm::vec3(0.0f);  // degenerate: never hit anyway
-    RTCBounds* b = args->bounds_o;
     b->lower_x = g.center.x - half.x;
     b->lower_y = g.center.y - half.y;
     b->lower_z = g.center.z - half.z;
@@ -48,6 +58,7 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
 void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (args->N != 1 || !args->valid[0] || ctx->mode == TraceMode::MeshesOnly) return;
+    ++ctx->candidates;
     const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
     RTCRayHit* rh = reinterpret_cast<RTCRayHit*>(args->rayhit);
     const GaussianPrimitive& g = set->prims[args->primID];
@@ -63,27 +74,43 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
         const std::uint64_t key = gather_key(args->geomID, args->primID);
         if (ctx->has_after && (t < ctx->after_t || (t == ctx->after_t && key <= ctx->after_key))) return;
         int pos;
-        if (ctx->count < kGatherCapacity) {
+        const int k = ctx->capacity;
+        if (ctx->count < k) {
             pos = ctx->count++;
         } else {
-            if (!hit_before(t, key, ctx->hits[kGatherCapacity - 1])) return;
-            pos = kGatherCapacity - 1;
+            if (!hit_before(t, key, ctx->hits[k - 1])) return;
+            pos = k - 1;
         }
         while (pos > 0 && hit_before(t, key, ctx->hits[pos - 1])) {
             ctx->hits[pos] = ctx->hits[pos - 1];
             --pos;
         }
         ctx->hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
-        if (ctx->count == kGatherCapacity) {
-            const float far = ctx->hits[kGatherCapacity - 1].t;
-            if (far < rh->ray.tfar) {
-                rh->ray.tfar = far;
-                rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
+        float T = pos > 0 ? ctx->prefix[pos - 1] : ctx->base_transmittance;
+        int cut = -1;
+        for (int i = pos; i < ctx->count; ++i) {
+            T *= 1.0f - ctx->hits[i].alpha;
+            ctx->prefix[i] = T;
+            if (T < ctx->transmittance_threshold) {
+                cut = i;
+                break;
             }
         }
+        float far = rh->ray.tfar;
+        if (cut >= 0) {
+            ctx->count = cut + 1;
+            far = ctx->hits[cut].t;
+        } else if (ctx->count == k) {
+            far = ctx->hits[k - 1].t;
+        }
+        if (far < rh->ray.tfar) {
+            rh->ray.tfar = far;
+            // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
+            rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        }
     } else if (ctx->mode == TraceMode::Stochastic) {
-        ++ctx->candidates;
         // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
         const float u = u32_to_unit_float(hash_combine(ctx->seed, hash_combine(args->geomID, args->primID)));
         if (u >= alpha) return;

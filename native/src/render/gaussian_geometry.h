@@ -93,7 +93,7 @@ struct GatherHit {
     std::uint32_t prim;
 };
 
-constexpr int kGatherCapacity = 16;
+constexpr int kGatherCapacity = 64;  // upper bound of RenderSettings::gather_buffer_size
 
 struct TraceContext : RTCIntersectContext {
     TraceMode mode = TraceMode::Gather;
@@ -102,9 +102,16 @@ struct TraceContext : RTCIntersectContext {
     std::uint64_t after_key = 0;
     bool has_after = false;
     int count = 0;
+    int capacity = 48;  // k, <= kGatherCapacity
     GatherHit hits[kGatherCapacity];
+    // prefix[i] = base_transmittance * prod_{j <= i} (1 - hits[j].alpha). Once it drops below the threshold the
+    // true transmittance there is lower still (unseen hits can only lower it), so everything behind hits[i] is
+    // irrelevant: the buffer is cut there and tfar shrinks to hits[i].t. Exact, and it bounds traversal depth.
+    float prefix[kGatherCapacity];
+    float base_transmittance = 1.0f;
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;
+    // Statistics: Gaussian callbacks (bounding-box candidates) during the traversal.
     std::uint64_t candidates = 0;
     // Transmittance.
     float transmittance = 1.0f;

@@ -36,6 +36,8 @@ void RenderSettings::validate() const {
     require(max_bounces >= 0 && max_bounces <= 1024, "max bounces must be in 0 .. 1024 (got " + std::to_string(max_bounces) + ")");
     require(std::isfinite(transmittance_threshold) && transmittance_threshold >= 0.0f && transmittance_threshold < 1.0f,
             "transmittance threshold must be in [0, 1)");
+    require(gather_buffer_size >= 1 && gather_buffer_size <= 64,
+            "gather buffer size must be in 1 .. 64 (got " + std::to_string(gather_buffer_size) + ")");
     require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
 }
 
@@ -49,7 +51,7 @@ struct Ray {
 };
 
 struct Counters {
-    std::uint64_t traced = 0, gaussian_hits = 0;
+    std::uint64_t traced = 0, gaussian_hits = 0, candidates = 0;
 };
 
 struct Segment {
@@ -123,13 +125,18 @@ public:
         Segment seg;
         TraceContext ctx;
         ctx.mode = TraceMode::Gather;
+        ctx.transmittance_threshold = st_.transmittance_threshold;
+        ctx.capacity = st_.gather_buffer_size;
         float t0 = ray.tmin;
         for (;;) {
             RTCRayHit rh;
             init_rayhit(rh, ray, t0);
             ctx.count = 0;
+            ctx.base_transmittance = seg.transmittance;
             rtcIntersect1(s_.scene, &ctx, &rh);
             ++c.traced;
+            c.candidates += ctx.candidates;
+            ctx.candidates = 0;
             const float seg_end = rh.ray.tfar;
             for (int i = 0; i < ctx.count; ++i) {
                 const GatherHit& h = ctx.hits[i];
@@ -145,8 +152,10 @@ public:
                 if (seg.transmittance > 0.5f) seg.depth = seg.t;
                 return seg;
             }
-            if (ctx.count < kGatherCapacity) return seg;  // every Gaussian of the segment was gathered
-            const GatherHit& last = ctx.hits[kGatherCapacity - 1];
+            // Every Gaussian of the segment was gathered unless the buffer overflowed.
+            const bool saturated = ctx.count > 0 && ctx.prefix[ctx.count - 1] < st_.transmittance_threshold;
+            if (ctx.count < ctx.capacity || saturated) return seg;
+            const GatherHit& last = ctx.hits[ctx.capacity - 1];
             t0 = last.t;
             ctx.after_t = last.t;
             ctx.after_key = gather_key(last.geom, last.prim);
@@ -163,6 +172,7 @@ public:
         init_rayhit(rh, ray, ray.tmin);
         rtcIntersect1(s_.scene, &ctx, &rh);
         ++c.traced;
+        c.candidates += ctx.candidates;
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return seg;
         const TopGeometry& tg = s_.top[rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID];
         if (tg.kind == TopGeometry::Gaussians && rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID) {
@@ -368,7 +378,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     Integrator integrator(impl, settings);
     std::atomic<int> tiles_done{0};
     std::atomic<bool> cancelled{false};
-    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0};
+    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0};
     std::mutex progress_mutex;
     auto is_cancelled = [&] {
         if (cancelled.load(std::memory_order_relaxed)) return true;
@@ -434,6 +444,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                 }
             traced += counters.traced;
             gaussian_hits += counters.gaussian_hits;
+            candidates += counters.candidates;
             const int done = ++tiles_done;
             if (progress) {
                 std::lock_guard<std::mutex> lock(progress_mutex);
@@ -446,6 +457,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     film.stats.camera_rays = std::uint64_t(w) * h * settings.samples;
     film.stats.traced_rays = traced.load();
     film.stats.gaussian_hits = gaussian_hits.load();
+    film.stats.gaussian_candidates = candidates.load();
     film.stats.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return film;
 }

@@ -13,6 +13,7 @@ struct RenderStats {
     std::uint64_t camera_rays = 0;       // primary rays (one per pixel sample)
     std::uint64_t traced_rays = 0;       // every rtcIntersect1/rtcOccluded1 call, including re-traces
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
+    std::uint64_t gaussian_candidates = 0;  // Gaussian intersection tests run by the traversals
     bool cancelled = false;
 };
 

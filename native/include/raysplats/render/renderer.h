@@ -30,6 +30,9 @@ struct RenderSettings {
     // Gaussian centre (meshes only occlude), so meshes cast shadows on splats.
     bool meshes_shadow_gaussians = false;
     int tile_size = 32;
+    // k of the per-ray k-nearest buffer (1 .. 64). Any k gives the same image; it trades re-traces against
+    // culling. The buffer is also cut where the transmittance falls below the threshold.
+    int gather_buffer_size = 48;
     // Box-filtered jitter inside the pixel; when false every sample goes through the pixel centre.
     bool jitter = true;
     // true: camera rays that escape show nothing (rgba is premultiplied by coverage, Blender's Film >
