@@ -5,11 +5,17 @@
 
 #include "raysplats/splat_io.h"
 
+namespace raysplats {
+int render_command(int argc, char** argv);  // render_command.cpp
+}
+
 int main(int argc, char** argv) {
+    if (argc >= 2 && std::string(argv[1]) == "render") return raysplats::render_command(argc - 1, argv + 1);
     if (argc < 3) {
         std::fprintf(stderr,
                      "usage: raysplats info FILE\n"
-                     "       raysplats convert IN OUT    (formats from the extensions: .ply .splat .spz)\n");
+                     "       raysplats convert IN OUT    (formats from the extensions: .ply .splat .spz)\n"
+                     "       raysplats render SPLATS [MESH.obj ...] [options]   (raysplats render --help)\n");
         return 2;
     }
     const std::string command = argv[1];

@@ -1,0 +1,34 @@
+// A Principled-BSDF-like material (Blender 3.x Principled subset) for meshes (DESIGN §6).
+#pragma once
+
+#include <array>
+
+namespace raysplats {
+
+// A float image shared with the caller (not copied): the caller keeps `pixels` alive while the scene lives.
+// Row 0 is the BOTTOM row (v = 0), like Blender's Image.pixels; values are linear unless `srgb` is set.
+struct ImageTexture {
+    const float* pixels = nullptr;  // width * height * channels floats
+    int width = 0;
+    int height = 0;
+    int channels = 4;   // 1, 3 or 4 (RGBA; alpha ignored)
+    bool srgb = false;  // convert from display sRGB to linear on lookup
+};
+
+struct Material {
+    std::array<float, 3> base_color{0.8f, 0.8f, 0.8f};  // linear RGB
+    ImageTexture base_color_texture;                    // used when pixels != nullptr, sampled bilinearly at the UVs
+    float metallic = 0.0f;
+    float roughness = 0.5f;      // GGX alpha = roughness^2; below 0.02 the lobes are perfectly specular
+    float specular = 0.5f;       // dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled)
+    float transmission = 0.0f;   // weight of the glass lobe
+    float ior = 1.45f;
+    std::array<float, 3> emission_color{0.0f, 0.0f, 0.0f};
+    float emission_strength = 1.0f;  // emitted radiance = emission_color * emission_strength
+    float alpha = 1.0f;              // coverage; 1 - alpha of the rays pass through unchanged
+
+    // Throws InvalidArgument (naming `what`) for NaN, out-of-range values or an inconsistent texture.
+    void validate(const char* what) const;
+};
+
+}  // namespace raysplats

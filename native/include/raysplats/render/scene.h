@@ -1,0 +1,79 @@
+// The scene the renderer traces (DESIGN §6): Gaussian clouds, triangle meshes, materials, lights and the world,
+// in one Embree 3 BVH. Meshes are instanced so that the caller's arrays are shared with Embree without copies
+// (Mitsuba's scene_embree.inl pattern); Gaussians are Embree user geometry with the exact ray tests of
+// gaussian_geometry.cpp.
+//
+// Lifetime: a Scene keeps POINTERS to the caller's mesh arrays, textures and Gaussian clouds. They must stay
+// alive and unchanged until the Scene is destroyed (numpy arrays held by the binding, for example).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "raysplats/gaussian_cloud.h"
+#include "raysplats/render/light.h"
+#include "raysplats/render/material.h"
+#include "raysplats/render/transform.h"
+
+namespace raysplats {
+
+enum class GaussianMode {
+    Flat,        // disk in the plane of the two largest axes, evaluated exactly at the ray-plane hit
+    Volumetric,  // ellipsoid, response at the point of maximum response along the ray (3DGRT)
+};
+
+// A triangle mesh handed over without copies. All arrays are the caller's.
+struct MeshDesc {
+    const float* vertices = nullptr;  // vertex_count * 3 floats (x y z), object space
+    std::size_t vertex_count = 0;
+    // Embree reads vertices with 16-byte loads, so the array must be readable one float past its end. Set this
+    // when the caller allocated 3 * vertex_count + 1 floats: the array is then shared. Otherwise the Scene makes
+    // one padded copy of the vertices (the only copy it ever makes of mesh data).
+    bool vertices_padded = false;
+    const std::uint32_t* indices = nullptr;  // triangle_count * 3, counter-clockwise = front
+    std::size_t triangle_count = 0;
+    const float* normals = nullptr;                 // optional, vertex_count * 3 (object space)
+    const float* uvs = nullptr;                     // optional, vertex_count * 2
+    const std::uint32_t* face_materials = nullptr;  // optional, triangle_count indices into the scene's materials
+    std::uint32_t material = 0;                     // material of every face when face_materials is null
+    Matrix4 object_to_world;
+};
+
+class Scene {
+public:
+    Scene();
+    ~Scene();
+    Scene(const Scene&) = delete;
+    Scene& operator=(const Scene&) = delete;
+
+    // Each returns the index of what it added. Every input is validated (NaN/Inf, out-of-range indices,
+    // sizes); problems throw InvalidArgument naming the element.
+    std::uint32_t add_material(const Material& material);
+    std::uint32_t add_mesh(const MeshDesc& mesh);
+    // `cloud` is kept by pointer (see Lifetime above). SH coefficients are in the cloud's frame: view
+    // directions are mapped into it by the inverse of the matrix's linear part (nothing to do for the
+    // identity, the add-on's world-space clouds).
+    std::uint32_t add_gaussians(const GaussianCloud& cloud, const Matrix4& object_to_world = Matrix4{});
+    std::uint32_t add_light(const Light& light);
+    void set_world(const World& world);
+
+    // Builds (or rebuilds, if the mode changed or something was added) the BVH. render() calls it; calling it
+    // beforehand separates build time from render time. Returns the build time in seconds (0 if nothing to do).
+    double build(GaussianMode mode);
+
+    std::size_t gaussian_count() const;
+    std::size_t mesh_count() const;
+    std::size_t light_count() const;
+    std::size_t material_count() const;
+
+    struct Impl;
+    Impl& impl() { return *impl_; }
+    const Impl& impl() const { return *impl_; }
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace raysplats

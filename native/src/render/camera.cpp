@@ -1,0 +1,151 @@
+// Camera models. Conventions follow Cycles 3.x (intern/cycles/blender/camera.cpp for sensor fit and shift,
+// intern/cycles/kernel/camera/projection.h for the panoramic mappings), written in Blender's camera frame:
+// forward = -Z, right = +X, up = +Y.
+#include "raysplats/render/camera.h"
+
+#include <cmath>
+#include <string>
+
+#include "raysplats/errors.h"
+#include "render_math.h"
+
+namespace raysplats {
+namespace {
+
+void require(bool ok, const std::string& message) {
+    if (!ok) throw InvalidArgument("camera: " + message);
+}
+
+bool finite(float v) { return std::isfinite(v); }
+
+// Whether the sensor spans the image width (true) or height (false); Cycles: Auto fits the larger dimension.
+bool horizontal_fit(const Camera& c, int width, int height) {
+    switch (c.sensor_fit) {
+        case SensorFit::Horizontal: return true;
+        case SensorFit::Vertical: return false;
+        case SensorFit::Auto: default: return width > height;
+    }
+}
+
+// Sensor size (mm) that spans the fitted dimension.
+float fitted_sensor(const Camera& c) {
+    return c.sensor_fit == SensorFit::Vertical ? c.sensor_height_mm : c.sensor_width_mm;
+}
+
+}  // namespace
+
+void Camera::validate() const {
+    camera_to_world.check_affine("camera_to_world");
+    for (float v : {focal_length_mm, sensor_width_mm, sensor_height_mm, shift_x, shift_y, clip_start, clip_end,
+                    ortho_scale, longitude_min, longitude_max, latitude_min, latitude_max, fisheye_fov,
+                    fisheye_lens_mm})
+        require(finite(v) || v == clip_end, "parameters must be finite (NaN or Inf given)");
+    require(!std::isnan(clip_end), "clip_end is NaN");
+    require(focal_length_mm > 0.0f, "focal length must be > 0 mm");
+    require(sensor_width_mm > 0.0f && sensor_height_mm > 0.0f, "sensor size must be > 0 mm");
+    require(clip_start >= 0.0f && clip_end > clip_start, "need 0 <= clip_start < clip_end");
+    require(ortho_scale > 0.0f, "ortho_scale must be > 0");
+    require(longitude_max > longitude_min, "equirectangular longitude range is empty");
+    require(latitude_max > latitude_min, "equirectangular latitude range is empty");
+    require(fisheye_fov > 0.0f && fisheye_fov <= 2.0f * kPi + 1e-4f, "fisheye fov must be in (0, 2 pi]");
+    require(fisheye_lens_mm > 0.0f, "fisheye lens must be > 0 mm");
+}
+
+CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
+    CameraRay ray{};
+    ray.valid = true;
+    const float w = float(width), h = float(height);
+    glm::vec3 org(0.0f), dir(0.0f, 0.0f, -1.0f);
+    float t_min = c.clip_start, t_max = c.clip_end;
+
+    switch (c.type) {
+        case CameraType::Perspective:
+        case CameraType::Orthographic: {
+            // Full extent of the fitted dimension: in tan units (sensor / lens) or in scene units (ortho scale).
+            const float extent = c.type == CameraType::Perspective ? fitted_sensor(c) / c.focal_length_mm : c.ortho_scale;
+            float half_w, half_h;
+            if (horizontal_fit(c, width, height)) {
+                half_w = 0.5f * extent;
+                half_h = half_w * h / w;
+            } else {
+                half_h = 0.5f * extent;
+                half_w = half_h * w / h;
+            }
+            const float px = (2.0f * x / w - 1.0f) * half_w + c.shift_x * extent;
+            const float py = (1.0f - 2.0f * y / h) * half_h + c.shift_y * extent;
+            if (c.type == CameraType::Perspective) {
+                dir = glm::vec3(px, py, -1.0f);
+                const float len = glm::length(dir);
+                dir /= len;
+                // Clipping planes are perpendicular to the view axis: t = clip / cos(angle to the axis).
+                t_min = c.clip_start * len;
+                t_max = c.clip_end * len;
+            } else {
+                org = glm::vec3(px, py, 0.0f);
+            }
+            break;
+        }
+        case CameraType::Equirectangular: {
+            const float u = x / w, v = 1.0f - y / h;  // v from the bottom, as in Cycles' raster
+            const float lon = c.longitude_min + u * (c.longitude_max - c.longitude_min);
+            const float lat = c.latitude_min + v * (c.latitude_max - c.latitude_min);
+            dir = glm::vec3(std::cos(lat) * std::sin(lon), std::sin(lat), -std::cos(lat) * std::cos(lon));
+            break;
+        }
+        case CameraType::FisheyeEquidistant: {
+            // Cycles fisheye_to_direction: u, v in [-1, 1] across each image axis, theta = r * fov / 2.
+            const float u = 2.0f * (x / w) - 1.0f, v = 1.0f - 2.0f * (y / h);
+            const float r = std::sqrt(u * u + v * v);
+            if (r > 1.0f) {
+                ray.valid = false;
+                break;
+            }
+            const float theta = r * 0.5f * c.fisheye_fov;
+            const float cu = r > 0.0f ? u / r : 1.0f, cv = r > 0.0f ? v / r : 0.0f;
+            dir = glm::vec3(std::sin(theta) * cu, std::sin(theta) * cv, -std::cos(theta));
+            break;
+        }
+        case CameraType::FisheyeEquisolid: {
+            // Cycles fisheye_equisolid_to_direction: position on the fitted sensor in mm, r = 2 f sin(theta / 2).
+            float sw, sh;
+            if (horizontal_fit(c, width, height)) {
+                sw = fitted_sensor(c);
+                sh = sw * h / w;
+            } else {
+                sh = fitted_sensor(c);
+                sw = sh * w / h;
+            }
+            const float u = (x / w - 0.5f) * sw, v = (0.5f - y / h) * sh;
+            const float r = std::sqrt(u * u + v * v);
+            const float s = r / (2.0f * c.fisheye_lens_mm);
+            if (s > 1.0f) {
+                ray.valid = false;
+                break;
+            }
+            const float theta = 2.0f * std::asin(s);
+            if (theta > 0.5f * c.fisheye_fov) {
+                ray.valid = false;
+                break;
+            }
+            const float cu = r > 0.0f ? u / r : 1.0f, cv = r > 0.0f ? v / r : 0.0f;
+            dir = glm::vec3(std::sin(theta) * cu, std::sin(theta) * cv, -std::cos(theta));
+            break;
+        }
+    }
+
+    const glm::mat3 a = linear_part(c.camera_to_world);
+    const glm::vec3 o = a * org + translation_part(c.camera_to_world);
+    glm::vec3 d = a * dir;
+    const float dl = glm::length(d);
+    d /= dl;
+    // A scaled camera matrix scales distances too: keep the clip range in world units along the ray.
+    for (int i = 0; i < 3; ++i) {
+        ray.origin[i] = o[i];
+        ray.direction[i] = d[i];
+    }
+    ray.t_min = t_min * dl;
+    ray.t_max = t_max * dl;
+    return ray;
+}
+
+}  // namespace raysplats

@@ -1,0 +1,223 @@
+#include "gaussian_geometry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <tbb/parallel_for.h>
+
+#include "raysplats/spherical_harmonics.h"
+#include "render_math.h"
+
+namespace raysplats {
+namespace {
+
+bool hit_before(float t, std::uint64_t key, const GatherHit& h) {
+    return t < h.t || (t == h.t && key < gather_key(h.geom, h.prim));
+}
+
+void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
+    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
+    const GaussianPrimitive& g = set->prims[args->primID];
+    // Columns of M^-1 (M = rows 0..2) are the world-space axes scaled by the standard deviations; for flat
+    // Gaussians columns 0 and 1 span the disk (row 2 is orthogonal to both by construction).
+    glm::mat3 m;
+    m[0] = glm::vec3(g.row0.x, g.row1.x, g.row2.x);
+    m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
+    m[2] = glm::vec3(g.row0.z, g.row1.z, g.row2.z);  // glm is column-major: m[c][r] = row r, column c
+    const glm::mat3 l = glm::inverse(m);
+    // Support: Mahalanobis radius 3, tightened to where a * G reaches 1/255 (hits below are skipped anyway):
+    // a exp(-r^2 / 2) = 1/255  <=>  r^2 = 2 ln(255 a). Gaussians that never reach 1/255 get an invalid box, which
+    // Embree leaves out of the BVH.
+    const float r2 = std::min(kGaussianSupportSq, 2.0f * std::log(255.0f * g.opacity));
+    RTCBounds* b = args->bounds_o;
+    if (!(r2 > 0.0f)) {
+        b->lower_x = b->lower_y = b->lower_z = std::numeric_limits<float>::infinity();
+        b->upper_x = b->upper_y = b->upper_z = -std::numeric_limits<float>::infinity();
+        return;
+    }
+    const float radius = std::sqrt(r2);
+    glm::vec3 half;
+    for (int j = 0; j < 3; ++j) {
+        float s = l[0][j] * l[0][j] + l[1][j] * l[1][j];
+        if (!set->flat) s += l[2][j] * l[2][j];
+        half[j] = radius * std::sqrt(s);
+    }
+    if (!std::isfinite(half.x + half.y + half.z)) half = glm::vec3(0.0f);  // degenerate: never hit anyway
+    b->lower_x = g.center.x - half.x;
+    b->lower_y = g.center.y - half.y;
+    b->lower_z = g.center.z - half.z;
+    b->upper_x = g.center.x + half.x;
+    b->upper_y = g.center.y + half.y;
+    b->upper_z = g.center.z + half.z;
+}
+
+// Intersect callback for rtcIntersect1 (N == 1). Never reports a hit in Gather mode: it fills the per-ray
+// k-nearest buffer and, once the buffer is full, shrinks tfar to the k-th distance so that traversal culls
+// everything behind it (a mesh hit that lies behind is dropped and found again by the next re-trace).
+void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
+    auto* ctx = static_cast<TraceContext*>(args->context);
+    if (args->N != 1 || !args->valid[0] || ctx->mode == TraceMode::MeshesOnly) return;
+    ++ctx->candidates;
+    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
+    RTCRayHit* rh = reinterpret_cast<RTCRayHit*>(args->rayhit);
+    const GaussianPrimitive& g = set->prims[args->primID];
+    const glm::vec3 o(rh->ray.org_x, rh->ray.org_y, rh->ray.org_z);
+    const glm::vec3 d(rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z);
+    float t, dist2;
+    if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) return;
+    if (!(t >= rh->ray.tnear && t <= rh->ray.tfar)) return;
+    const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
+    if (alpha < kMinAlpha) return;
+
+    if (ctx->mode == TraceMode::Gather) {
+        const std::uint64_t key = gather_key(args->geomID, args->primID);
+        if (ctx->has_after && (t < ctx->after_t || (t == ctx->after_t && key <= ctx->after_key))) return;
+        int pos;
+        const int k = ctx->capacity;
+        if (ctx->count < k) {
+            pos = ctx->count++;
+        } else {
+            if (!hit_before(t, key, ctx->hits[k - 1])) return;
+            pos = k - 1;
+        }
+        while (pos > 0 && hit_before(t, key, ctx->hits[pos - 1])) {
+            ctx->hits[pos] = ctx->hits[pos - 1];
+            --pos;
+        }
+        ctx->hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
+        // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
+        float T = pos > 0 ? ctx->prefix[pos - 1] : ctx->base_transmittance;
+        int cut = -1;
+        for (int i = pos; i < ctx->count; ++i) {
+            T *= 1.0f - ctx->hits[i].alpha;
+            ctx->prefix[i] = T;
+            if (T < ctx->transmittance_threshold) {
+                cut = i;
+                break;
+            }
+        }
+        float far = rh->ray.tfar;
+        if (cut >= 0) {
+            ctx->count = cut + 1;
+            far = ctx->hits[cut].t;
+        } else if (ctx->count == k) {
+            far = ctx->hits[k - 1].t;
+        }
+        if (far < rh->ray.tfar) {
+            rh->ray.tfar = far;
+            // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
+            rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        }
+    } else if (ctx->mode == TraceMode::Stochastic) {
+        // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
+        const float u = u32_to_unit_float(hash_combine(ctx->seed, hash_combine(args->geomID, args->primID)));
+        if (u >= alpha) return;
+        rh->ray.tfar = t;
+        rh->hit.u = alpha;
+        rh->hit.v = 0.0f;
+        const glm::vec3 n = set->flat ? g.row2 : -d;
+        rh->hit.Ng_x = n.x;
+        rh->hit.Ng_y = n.y;
+        rh->hit.Ng_z = n.z;
+        rh->hit.primID = args->primID;
+        rh->hit.geomID = args->geomID;
+        rh->hit.instID[0] = args->context->instID[0];
+    }
+}
+
+// Occlusion callback: the transmittance of a shadow segment is the product of (1 - alpha) over the Gaussians
+// on it, in any order, so no sorting is needed. Reports occlusion only when it falls below the threshold.
+void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
+    auto* ctx = static_cast<TraceContext*>(args->context);
+    if (args->N != 1 || !args->valid[0] || ctx->mode != TraceMode::Transmittance) return;
+    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
+    RTCRay* ray = reinterpret_cast<RTCRay*>(args->ray);
+    const GaussianPrimitive& g = set->prims[args->primID];
+    const glm::vec3 o(ray->org_x, ray->org_y, ray->org_z);
+    const glm::vec3 d(ray->dir_x, ray->dir_y, ray->dir_z);
+    float t, dist2;
+    if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) return;
+    if (!(t >= ray->tnear && t <= ray->tfar)) return;
+    const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
+    if (alpha < kMinAlpha) return;
+    ctx->transmittance *= 1.0f - alpha;
+    if (ctx->transmittance <= ctx->transmittance_threshold) {
+        ctx->transmittance = 0.0f;
+        ray->tfar = -std::numeric_limits<float>::infinity();
+    }
+}
+
+}  // namespace
+
+void GaussianSet::prepare(GaussianMode mode) {
+    flat = mode == GaussianMode::Flat;
+    const GaussianCloud& c = *cloud;
+    const std::size_t n = c.size();
+    prims.resize(n);
+    const glm::mat3 a = linear_part(object_to_world);
+    const glm::mat3 a_inv = glm::inverse(a);
+    const glm::mat3 a_inv_t = glm::transpose(a_inv);
+    const glm::vec3 b = translation_part(object_to_world);
+    world_to_object_dir = a_inv;
+    const bool deg0 = c.sh_degree == 0;
+    if (deg0) linear_rgb.resize(3 * n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const float* q = &c.rotations[4 * i];
+            glm::vec4 qq(q[0], q[1], q[2], q[3]);
+            const float qn = glm::length(qq);
+            qq = qn > 0.0f ? qq / qn : glm::vec4(1, 0, 0, 0);
+            const float w = qq[0], x = qq[1], y = qq[2], z = qq[3];
+            // Columns of R: the Gaussian's axes (reference 3DGS build_rotation).
+            const glm::vec3 axis[3] = {
+                {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)},
+                {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)},
+                {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)},
+            };
+            const float* s = &c.scales[3 * i];
+            int order[3] = {0, 1, 2};
+            std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
+            const float smax = std::max(s[order[0]], 1e-30f);
+            auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
+            GaussianPrimitive& g = prims[i];
+            g.center = a * glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]) + b;
+            g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
+            // row_world = A^-T row_object  (so that row_world . (x_world - m_world) = row_object . (x_obj - m_obj))
+            g.row0 = a_inv_t * (axis[order[0]] * inv_scale(order[0]));
+            g.row1 = a_inv_t * (axis[order[1]] * inv_scale(order[1]));
+            g.row2 = flat ? glm::normalize(a_inv_t * axis[order[2]]) : a_inv_t * (axis[order[2]] * inv_scale(order[2]));
+            g.pad0 = g.pad1 = g.pad2 = 0.0f;
+            if (deg0) {
+                for (int ch = 0; ch < 3; ++ch)
+                    linear_rgb[3 * i + ch] =
+                        srgb_to_linear(std::max(0.0f, 0.5f + float(kShC0) * c.sh[3 * i + ch]));
+            }
+        }
+    });
+}
+
+glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
+    if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
+    // Reference 3DGS: the SH are evaluated in the direction from the camera (ray origin) to the centre.
+    glm::vec3 dir = world_to_object_dir * (prims[i].center - origin);
+    const float len = glm::length(dir);
+    dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
+    const int k = cloud->coeffs_per_channel();
+    const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(i) * k * 3], dir.x, dir.y, dir.z);
+    return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
+}
+
+RTCGeometry GaussianSet::create_geometry(RTCDevice device) {
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(geom, unsigned(prims.size()));
+    rtcSetGeometryUserData(geom, this);
+    rtcSetGeometryBoundsFunction(geom, gaussians_bounds, this);
+    rtcSetGeometryIntersectFunction(geom, gaussians_intersect);
+    rtcSetGeometryOccludedFunction(geom, gaussians_occluded);
+    rtcCommitGeometry(geom);
+    return geom;
+}
+
+}  // namespace raysplats

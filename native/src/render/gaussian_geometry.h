@@ -1,0 +1,125 @@
+// Gaussians as Embree user geometry (internal). Each Gaussian is stored as its centre and three world-space
+// rows that map a world offset x - m to canonical coordinates:
+//   volumetric: y = S^-1 R^T A^-1 (x - m), G = exp(-|y|^2 / 2), the ellipsoid of Mahalanobis radius 3 is |y| <= 3;
+//   flat:       rows 0 and 1 as above (the two largest axes), row 2 the plane normal (R's smallest axis pulled
+//               back through A^-1, unnormalised): the disk is { x : row2 . (x - m) = 0, y0^2 + y1^2 <= 9 }.
+// (A = linear part of the object-to-world matrix, so any affine object transform is exact.)
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <embree3/rtcore.h>
+#include <glm/glm.hpp>
+
+#include "raysplats/gaussian_cloud.h"
+#include "raysplats/render/scene.h"
+#include "raysplats/render/transform.h"
+
+namespace raysplats {
+
+constexpr float kGaussianSupportSq = 9.0f;          // Mahalanobis radius 3
+constexpr float kMinAlpha = 1.0f / 255.0f;          // DESIGN §6: hits below this are skipped
+constexpr float kMaxAlpha = 0.99f;                  // DESIGN §6: alpha clamp
+
+struct alignas(16) GaussianPrimitive {
+    glm::vec3 center;
+    float opacity;
+    glm::vec3 row0;
+    float pad0;
+    glm::vec3 row1;
+    float pad1;
+    glm::vec3 row2;
+    float pad2;
+};
+static_assert(sizeof(GaussianPrimitive) == 64, "one cache line per Gaussian");
+
+// Exact ray test. On success returns true with the hit distance t (ray parameter, any sign) and the squared
+// Mahalanobis distance of the evaluation point (at the plane hit for flat, at the maximum response along the
+// ray for volumetric). Written for float, no branches beyond the support test.
+inline bool intersect_gaussian(const GaussianPrimitive& g, bool flat, const glm::vec3& o, const glm::vec3& d,
+                               float& t, float& dist2) {
+    const glm::vec3 p = o - g.center;
+    if (flat) {
+        const float denom = glm::dot(g.row2, d);
+        if (denom == 0.0f) return false;
+        t = -glm::dot(g.row2, p) / denom;
+        const glm::vec3 q = p + t * d;
+        const float u = glm::dot(g.row0, q), v = glm::dot(g.row1, q);
+        dist2 = u * u + v * v;
+    } else {
+        const glm::vec3 po(glm::dot(g.row0, p), glm::dot(g.row1, p), glm::dot(g.row2, p));
+        const glm::vec3 dd(glm::dot(g.row0, d), glm::dot(g.row1, d), glm::dot(g.row2, d));
+        const float d2 = glm::dot(dd, dd);
+        if (d2 == 0.0f) return false;
+        t = -glm::dot(po, dd) / d2;
+        const glm::vec3 q = po + t * dd;
+        dist2 = glm::dot(q, q);
+    }
+    return dist2 <= kGaussianSupportSq;
+}
+
+// One Gaussian cloud in the scene.
+struct GaussianSet {
+    const GaussianCloud* cloud = nullptr;
+    Matrix4 object_to_world;
+    glm::mat3 world_to_object_dir{1.0f};  // A^-1: view directions into the frame of the SH coefficients
+    bool flat = true;
+    std::vector<GaussianPrimitive> prims;
+    std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per Gaussian
+    std::uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+
+    // Computes prims (and colours) for the mode, in parallel.
+    void prepare(GaussianMode mode);
+    // Linear colour of Gaussian i seen from `origin` (world).
+    glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
+    // Creates the Embree user geometry (bounds + intersect + occluded callbacks).
+    RTCGeometry create_geometry(RTCDevice device);
+};
+
+// What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
+// RTCIntersectContext (the Embree tutorials' pattern for extra per-ray data).
+enum class TraceMode : std::uint32_t {
+    Gather,        // sorted: keep the k nearest hits in `gather`
+    Stochastic,    // accept each with probability alpha, report the nearest accepted as an Embree hit
+    Transmittance, // occlusion query: multiply `transmittance` by (1 - alpha) of every Gaussian on the segment
+    MeshesOnly,    // Gaussians are ignored
+};
+
+struct GatherHit {
+    float t;
+    float alpha;
+    std::uint32_t geom;
+    std::uint32_t prim;
+};
+
+constexpr int kGatherCapacity = 64;  // upper bound of RenderSettings::gather_buffer_size
+
+struct TraceContext : RTCIntersectContext {
+    TraceMode mode = TraceMode::Gather;
+    // Gather: hits strictly after (after_t, after_key) in (t, key) order, key = geom << 32 | prim.
+    float after_t = -1e30f;
+    std::uint64_t after_key = 0;
+    bool has_after = false;
+    int count = 0;
+    int capacity = 48;  // k, <= kGatherCapacity
+    GatherHit hits[kGatherCapacity];
+    // prefix[i] = base_transmittance * prod_{j <= i} (1 - hits[j].alpha). Once it drops below the threshold the
+    // true transmittance there is lower still (unseen hits can only lower it), so everything behind hits[i] is
+    // irrelevant: the buffer is cut there and tfar shrinks to hits[i].t. Exact, and it bounds traversal depth.
+    float prefix[kGatherCapacity];
+    float base_transmittance = 1.0f;
+    // Stochastic: random seed of this ray.
+    std::uint32_t seed = 0;
+    // Statistics: Gaussian callbacks (bounding-box candidates) during the traversal.
+    std::uint64_t candidates = 0;
+    // Transmittance.
+    float transmittance = 1.0f;
+    float transmittance_threshold = 0.0f;
+
+    TraceContext() { rtcInitIntersectContext(this); }
+};
+
+inline std::uint64_t gather_key(std::uint32_t geom, std::uint32_t prim) { return (std::uint64_t(geom) << 32) | prim; }
+
+}  // namespace raysplats

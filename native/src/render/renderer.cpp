@@ -1,0 +1,465 @@
+// The integrator (DESIGN §6). Per ray: the closest opaque mesh hit bounds the segment; the Gaussians on it are
+// gathered k at a time in exact (t, id) order by the user-geometry callback (gaussian_geometry.cpp) and
+// composited front to back, C += T a_i c_i, T *= 1 - a_i; the ray is re-traced from the k-th hit until the
+// segment is done or T < threshold. The mesh hit is then shaded, weighted by T, with next-event estimation
+// whose shadow rays carry Gaussian transmittance x mesh occlusion.
+#include "raysplats/render/renderer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "bsdf.h"
+#include "light_sampling.h"
+#include "raysplats/errors.h"
+#include "render_math.h"
+#include "scene_impl.h"
+
+namespace raysplats {
+
+void RenderSettings::validate() const {
+    auto require = [](bool ok, const std::string& problem) {
+        if (!ok) throw InvalidArgument("render settings: " + problem);
+    };
+    require(width > 0 && height > 0, "image size must be at least 1 x 1 (got " + std::to_string(width) + " x " +
+                                         std::to_string(height) + ")");
+    require(width <= 65536 && height <= 65536 && std::int64_t(width) * height <= (std::int64_t(1) << 28),
+            "image size " + std::to_string(width) + " x " + std::to_string(height) + " is too large (max 2^28 pixels)");
+    require(samples >= 1 && samples <= (1 << 20), "samples per pixel must be in 1 .. 1048576 (got " + std::to_string(samples) + ")");
+    require(max_bounces >= 0 && max_bounces <= 1024, "max bounces must be in 0 .. 1024 (got " + std::to_string(max_bounces) + ")");
+    require(std::isfinite(transmittance_threshold) && transmittance_threshold >= 0.0f && transmittance_threshold < 1.0f,
+            "transmittance threshold must be in [0, 1)");
+    require(gather_buffer_size >= 1 && gather_buffer_size <= 64,
+            "gather buffer size must be in 1 .. 64 (got " + std::to_string(gather_buffer_size) + ")");
+    require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
+}
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+struct Ray {
+    glm::vec3 o, d;
+    float tmin, tmax;
+};
+
+struct Counters {
+    std::uint64_t traced = 0, gaussian_hits = 0, candidates = 0;
+};
+
+struct Segment {
+    glm::vec3 radiance{0.0f};  // premultiplied Gaussian radiance
+    float transmittance = 1.0f;
+    bool terminated = false;   // T fell below the threshold (or a stochastic Gaussian was accepted)
+    bool mesh = false;
+    unsigned top_geom = RTC_INVALID_GEOMETRY_ID;
+    unsigned prim = 0;
+    float t = kInf, u = 0.0f, v = 0.0f;
+    float depth = kInf;        // first point where opacity reaches 0.5
+    glm::vec3 normal{0.0f};
+};
+
+struct Surface {
+    glm::vec3 p, ng, ns;  // ng, ns: outward (front-face) normals, world
+    glm::vec2 uv{0.0f};
+    std::uint32_t material = 0;
+};
+
+class Integrator {
+public:
+    Integrator(const Scene::Impl& scene, const RenderSettings& settings)
+        : s_(scene), st_(settings), world_(glm::vec3(scene.world.color[0], scene.world.color[1], scene.world.color[2]) *
+                                           scene.world.strength) {}
+
+    void init_rayhit(RTCRayHit& rh, const Ray& ray, float tnear) const {
+        rh.ray.org_x = ray.o.x;
+        rh.ray.org_y = ray.o.y;
+        rh.ray.org_z = ray.o.z;
+        rh.ray.dir_x = ray.d.x;
+        rh.ray.dir_y = ray.d.y;
+        rh.ray.dir_z = ray.d.z;
+        rh.ray.tnear = tnear;
+        rh.ray.tfar = ray.tmax;
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xffffffffu;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    }
+
+    void record_mesh(Segment& seg, const RTCRayHit& rh) const {
+        seg.mesh = true;
+        seg.top_geom = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
+        seg.prim = rh.hit.primID;
+        seg.t = rh.ray.tfar;
+        seg.u = rh.hit.u;
+        seg.v = rh.hit.v;
+    }
+
+    // Composites one Gaussian onto the segment (front to back).
+    void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
+                   Sampler& rng, Counters& c) const {
+        const GaussianSet& set = *s_.gaussians[s_.top[geom].index];
+        glm::vec3 color = set.color(prim, ray.o);
+        if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[prim].center, rng, c);
+        const float t_before = seg.transmittance;
+        seg.radiance += t_before * alpha * color;
+        seg.transmittance = t_before * (1.0f - alpha);
+        if (t_before > 0.5f && seg.transmittance <= 0.5f) {
+            seg.depth = t;
+            glm::vec3 n = set.flat ? glm::normalize(set.prims[prim].row2) : -ray.d;
+            seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+        }
+        ++c.gaussian_hits;
+    }
+
+    Segment trace_sorted(const Ray& ray, Sampler& rng, Counters& c) const {
+        Segment seg;
+        TraceContext ctx;
+        ctx.mode = TraceMode::Gather;
+        ctx.transmittance_threshold = st_.transmittance_threshold;
+        ctx.capacity = st_.gather_buffer_size;
+        float t0 = ray.tmin;
+        for (;;) {
+            RTCRayHit rh;
+            init_rayhit(rh, ray, t0);
+            ctx.count = 0;
+            ctx.base_transmittance = seg.transmittance;
+            rtcIntersect1(s_.scene, &ctx, &rh);
+            ++c.traced;
+            c.candidates += ctx.candidates;
+            ctx.candidates = 0;
+            const float seg_end = rh.ray.tfar;
+            for (int i = 0; i < ctx.count; ++i) {
+                const GatherHit& h = ctx.hits[i];
+                if (h.t > seg_end) break;  // behind the mesh hit found later in the traversal
+                composite(seg, ray, h.geom, h.prim, h.t, h.alpha, rng, c);
+                if (seg.transmittance < st_.transmittance_threshold) {
+                    seg.terminated = true;
+                    return seg;
+                }
+            }
+            if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+                record_mesh(seg, rh);
+                if (seg.transmittance > 0.5f) seg.depth = seg.t;
+                return seg;
+            }
+            // Every Gaussian of the segment was gathered unless the buffer overflowed.
+            const bool saturated = ctx.count > 0 && ctx.prefix[ctx.count - 1] < st_.transmittance_threshold;
+            if (ctx.count < ctx.capacity || saturated) return seg;
+            const GatherHit& last = ctx.hits[ctx.capacity - 1];
+            t0 = last.t;
+            ctx.after_t = last.t;
+            ctx.after_key = gather_key(last.geom, last.prim);
+            ctx.has_after = true;
+        }
+    }
+
+    Segment trace_stochastic(const Ray& ray, Sampler& rng, Counters& c) const {
+        Segment seg;
+        TraceContext ctx;
+        ctx.mode = TraceMode::Stochastic;
+        ctx.seed = rng.next_u32();
+        RTCRayHit rh;
+        init_rayhit(rh, ray, ray.tmin);
+        rtcIntersect1(s_.scene, &ctx, &rh);
+        ++c.traced;
+        c.candidates += ctx.candidates;
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return seg;
+        const TopGeometry& tg = s_.top[rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID];
+        if (tg.kind == TopGeometry::Gaussians && rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID) {
+            // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
+            const GaussianSet& set = *s_.gaussians[tg.index];
+            glm::vec3 color = set.color(rh.hit.primID, ray.o);
+            if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[rh.hit.primID].center, rng, c);
+            seg.radiance = color;
+            seg.transmittance = 0.0f;
+            seg.terminated = true;
+            seg.depth = rh.ray.tfar;
+            glm::vec3 n = glm::normalize(glm::vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+            seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+            ++c.gaussian_hits;
+            return seg;
+        }
+        record_mesh(seg, rh);
+        seg.depth = seg.t;
+        return seg;
+    }
+
+    Segment trace(const Ray& ray, Sampler& rng, Counters& c) const {
+        return st_.compositing == Compositing::Sorted ? trace_sorted(ray, rng, c) : trace_stochastic(ray, rng, c);
+    }
+
+    // Visibility of a light sample: Gaussian transmittance x mesh occlusion (meshes_only: meshes alone).
+    float shadow(const glm::vec3& o, const glm::vec3& d, float dist, bool meshes_only, Counters& c) const {
+        TraceContext ctx;
+        ctx.mode = meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance;
+        ctx.transmittance_threshold = st_.transmittance_threshold;
+        RTCRay ray;
+        ray.org_x = o.x;
+        ray.org_y = o.y;
+        ray.org_z = o.z;
+        ray.dir_x = d.x;
+        ray.dir_y = d.y;
+        ray.dir_z = d.z;
+        ray.tnear = 0.0f;
+        ray.tfar = std::isfinite(dist) ? dist * (1.0f - 1e-4f) : kInf;
+        ray.time = 0.0f;
+        ray.mask = 0xffffffffu;
+        ray.id = 0;
+        ray.flags = 0;
+        rtcOccluded1(s_.scene, &ctx, &ray);
+        ++c.traced;
+        if (ray.tfar == -kInf) return 0.0f;
+        return ctx.transmittance;
+    }
+
+    // Fraction of the lights' unshadowed irradiance that reaches a Gaussian centre past the meshes.
+    float gaussian_light_visibility(const glm::vec3& p, Sampler& rng, Counters& c) const {
+        if (s_.lights.empty()) return 1.0f;
+        float total = 0.0f, visible = 0.0f;
+        for (const Light& l : s_.lights) {
+            LightSample ls;
+            if (!sample_light(l, p, rng, ls)) continue;
+            const float e = luminance(ls.value);
+            if (!(e > 0.0f)) continue;
+            total += e;
+            visible += e * shadow(p, ls.wi, ls.distance, true, c);
+        }
+        return total > 0.0f ? visible / total : 1.0f;
+    }
+
+    Surface surface(const Segment& seg, const Ray& ray) const {
+        const MeshRecord& m = *s_.meshes[s_.top[seg.top_geom].index];
+        const std::uint32_t* idx = m.desc.indices + 3 * std::size_t(seg.prim);
+        const float* vd = m.vertex_data();
+        auto vtx = [&](std::uint32_t i) { return glm::vec3(vd[3 * i], vd[3 * i + 1], vd[3 * i + 2]); };
+        const glm::vec3 v0 = vtx(idx[0]), v1 = vtx(idx[1]), v2 = vtx(idx[2]);
+        Surface sf;
+        sf.p = ray.o + seg.t * ray.d;
+        sf.ng = glm::normalize(m.normal_matrix * glm::cross(v1 - v0, v2 - v0));
+        const float b0 = 1.0f - seg.u - seg.v, b1 = seg.u, b2 = seg.v;
+        sf.ns = sf.ng;
+        if (m.desc.normals) {
+            const float* n = m.desc.normals;
+            auto nrm = [&](std::uint32_t i) { return glm::vec3(n[3 * i], n[3 * i + 1], n[3 * i + 2]); };
+            const glm::vec3 ni = m.normal_matrix * (b0 * nrm(idx[0]) + b1 * nrm(idx[1]) + b2 * nrm(idx[2]));
+            const float len = glm::length(ni);
+            if (len > 0.0f) sf.ns = ni / len;
+            if (glm::dot(sf.ns, sf.ng) < 0.0f) sf.ns = -sf.ns;
+        }
+        if (m.desc.uvs) {
+            const float* t = m.desc.uvs;
+            auto uv = [&](std::uint32_t i) { return glm::vec2(t[2 * i], t[2 * i + 1]); };
+            sf.uv = b0 * uv(idx[0]) + b1 * uv(idx[1]) + b2 * uv(idx[2]);
+        }
+        sf.material = m.desc.face_materials ? m.desc.face_materials[seg.prim] : m.desc.material;
+        return sf;
+    }
+
+    // One path from a camera ray. Returns the radiance; writes coverage, depth and normal of the primary segment.
+    glm::vec3 path(Ray ray, Sampler& rng, Counters& c, float& alpha, float& depth, glm::vec3& normal) const {
+        glm::vec3 radiance(0.0f), beta(1.0f);
+        bool camera_segment = true;
+        alpha = 0.0f;
+        depth = kInf;
+        normal = glm::vec3(0.0f);
+        int bounce = 0, passes = 0;
+        const Material default_material;
+        for (;;) {
+            Segment seg = trace(ray, rng, c);
+            radiance += beta * seg.radiance;
+            if (camera_segment) {
+                if (depth == kInf && seg.depth < kInf) {
+                    depth = seg.depth;
+                    normal = seg.normal;
+                }
+            }
+            if (seg.terminated) {
+                if (camera_segment) alpha = 1.0f;
+                break;
+            }
+            if (!seg.mesh) {
+                if (camera_segment) {
+                    alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
+                    if (st_.transparent_background) break;
+                }
+                radiance += beta * seg.transmittance * world_;
+                break;
+            }
+            beta *= seg.transmittance;
+            const Surface sf = surface(seg, ray);
+            const Material& mat = s_.materials.empty() ? default_material : s_.materials[sf.material];
+            const bool entering = glm::dot(sf.ng, ray.d) < 0.0f;
+            const glm::vec3 ng = entering ? sf.ng : -sf.ng;  // facing the incoming ray
+            const float eps = 1e-4f * std::max(1.0f, std::max(std::abs(sf.p.x), std::max(std::abs(sf.p.y), std::abs(sf.p.z))));
+            if (mat.alpha < 1.0f && rng.next() >= mat.alpha && ++passes < 256) {
+                // Stochastic coverage: continue straight through.
+                if (camera_segment) alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
+                ray = Ray{sf.p - ng * eps, ray.d, 0.0f, kInf};
+                continue;
+            }
+            if (camera_segment) {
+                alpha = 1.0f;
+                if (depth == kInf) {
+                    depth = seg.t;
+                    normal = ng;
+                }
+                camera_segment = false;
+            }
+            radiance += beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
+                        mat.emission_strength;
+            glm::vec3 ns = entering ? sf.ns : -sf.ns;
+            const glm::vec3 wo = -ray.d;
+            if (glm::dot(ns, wo) <= 0.0f) ns = ng;
+            const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, entering);
+            const glm::vec3 p_out = sf.p + ng * eps;
+            if (bsdf.has_non_delta()) {
+                for (const Light& l : s_.lights) {
+                    LightSample ls;
+                    if (!sample_light(l, p_out, rng, ls)) continue;
+                    if (glm::dot(ls.wi, ng) <= 0.0f) continue;
+                    float pdf;
+                    const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf);
+                    const float cos_i = glm::dot(ns, ls.wi);
+                    if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
+                    const float vis = shadow(p_out, ls.wi, ls.distance, false, c);
+                    if (vis > 0.0f) radiance += beta * f * cos_i * ls.value * vis;
+                }
+            }
+            if (bounce >= st_.max_bounces) break;
+            glm::vec3 wi, weight;
+            bool delta, transmitted;
+            if (!bsdf.sample(wo, rng, wi, weight, delta, transmitted)) break;
+            beta *= weight;
+            if (!(beta.x > 0.0f || beta.y > 0.0f || beta.z > 0.0f)) break;
+            ++bounce;
+            if (bounce > 3) {
+                // Russian roulette keeps long paths unbiased and cheap.
+                const float q = std::min(0.95f, std::max(beta.x, std::max(beta.y, beta.z)));
+                if (rng.next() >= q) break;
+                beta /= q;
+            }
+            const bool below = glm::dot(wi, ng) < 0.0f;
+            ray = Ray{sf.p + (below ? -ng : ng) * eps, wi, 0.0f, kInf};
+        }
+        return radiance;
+    }
+
+private:
+    const Scene::Impl& s_;
+    const RenderSettings& st_;
+    glm::vec3 world_;
+};
+
+}  // namespace
+
+Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, const ProgressCallback& progress,
+            const std::atomic<bool>* cancel) {
+    settings.validate();
+    camera.validate();
+    const auto start = std::chrono::steady_clock::now();
+    scene.build(settings.gaussian_mode);
+    const Scene::Impl& impl = scene.impl();
+
+    Film film;
+    film.resize(settings.width, settings.height);
+    const int w = settings.width, h = settings.height, ts = settings.tile_size;
+    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    const int tile_count = tiles_x * tiles_y;
+    Integrator integrator(impl, settings);
+    std::atomic<int> tiles_done{0};
+    std::atomic<bool> cancelled{false};
+    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0};
+    std::mutex progress_mutex;
+    auto is_cancelled = [&] {
+        if (cancelled.load(std::memory_order_relaxed)) return true;
+        if (cancel && cancel->load(std::memory_order_relaxed)) {
+            cancelled = true;
+            return true;
+        }
+        return false;
+    };
+
+    tbb::parallel_for(tbb::blocked_range<int>(0, tile_count, 1), [&](const tbb::blocked_range<int>& range) {
+        for (int tile = range.begin(); tile != range.end(); ++tile) {
+            if (is_cancelled()) return;
+            const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+            const int x1 = std::min(x0 + ts, w), y1 = std::min(y0 + ts, h);
+            Counters counters;
+            const int tw = x1 - x0;
+            std::vector<glm::vec4> accum(std::size_t(tw) * (y1 - y0), glm::vec4(0.0f));
+            std::vector<float> coverage(accum.size(), 0.0f);
+            bool stop = false;
+            // Samples outermost so that consecutive primary rays are coherent (neighbouring pixels).
+            for (int sample = 0; sample < settings.samples && !stop; ++sample) {
+                for (int y = y0; y < y1 && !stop; ++y) {
+                    if (is_cancelled()) {
+                        stop = true;
+                        break;
+                    }
+                    for (int x = x0; x < x1; ++x) {
+                        const std::uint64_t pixel = std::uint64_t(y) * w + x;
+                        Sampler rng(settings.seed, pixel, std::uint32_t(sample));
+                        float jx = 0.5f, jy = 0.5f;
+                        if (settings.jitter) {
+                            jx = rng.next();
+                            jy = rng.next();
+                        }
+                        const CameraRay cr = generate_camera_ray(camera, w, h, x + jx, y + jy);
+                        if (!cr.valid) continue;
+                        const Ray ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
+                                      glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
+                        float a, depth;
+                        glm::vec3 n;
+                        const glm::vec3 l = integrator.path(ray, rng, counters, a, depth, n);
+                        const std::size_t li = std::size_t(y - y0) * tw + (x - x0);
+                        accum[li] += glm::vec4(l, 0.0f);
+                        coverage[li] += a;
+                        if (sample == 0) {
+                            film.depth[pixel] = depth;
+                            for (int k = 0; k < 3; ++k) film.normal[3 * pixel + k] = n[k];
+                        }
+                    }
+                }
+            }
+            if (stop) return;  // a cancelled tile is left empty rather than half-sampled
+            const float inv = 1.0f / float(settings.samples);
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x) {
+                    const std::size_t li = std::size_t(y - y0) * tw + (x - x0);
+                    const std::size_t pixel = std::size_t(y) * w + x;
+                    const float cov = coverage[li] * inv;
+                    for (int k = 0; k < 3; ++k) film.rgba[4 * pixel + k] = accum[li][k] * inv;
+                    film.rgba[4 * pixel + 3] = settings.transparent_background ? cov : 1.0f;
+                    film.alpha[pixel] = cov;
+                }
+            traced += counters.traced;
+            gaussian_hits += counters.gaussian_hits;
+            candidates += counters.candidates;
+            const int done = ++tiles_done;
+            if (progress) {
+                std::lock_guard<std::mutex> lock(progress_mutex);
+                progress(float(done) / float(tile_count));
+            }
+        }
+    });
+
+    film.stats.cancelled = cancelled.load();
+    film.stats.camera_rays = std::uint64_t(w) * h * settings.samples;
+    film.stats.traced_rays = traced.load();
+    film.stats.gaussian_hits = gaussian_hits.load();
+    film.stats.gaussian_candidates = candidates.load();
+    film.stats.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return film;
+}
+
+}  // namespace raysplats
