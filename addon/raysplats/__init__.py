@@ -1,6 +1,6 @@
 # RaySplats: editable, ray-traced 3D Gaussian Splatting scenes in Blender.
 # The add-on is glue (DESIGN §2): it moves Blender data in bulk to the native core (raysplats._native) and
-# back. Module import order is fixed (utils -> properties -> io -> ui) so that "Reload Scripts" works.
+# back. Module import order is fixed (utils -> properties -> io -> engine) so that "Reload Scripts" works.
 
 bl_info = {
     "name": "RaySplats",
@@ -15,14 +15,14 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export):  # noqa: F821
+    for _module in (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export, engine):  # noqa: F821
         importlib.reload(_module)
 else:
-    from . import native, axes, progress, properties, gaussian_mesh, material, io_import, io_export
+    from . import native, axes, progress, properties, gaussian_mesh, material, io_import, io_export, engine
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export)
+_modules = (properties, io_import, io_export, engine)
 
 
 def register():

@@ -116,18 +116,22 @@ def is_gaussian_object(obj):
         and obj.raysplats.is_gaussian
 
 
-def recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers=True):
-    """Recovers the Gaussians of one Gaussian object (evaluated: modifiers, shape keys, armatures) in the
-    space given by mesh_to_output (4x4, applied to the mesh's own coordinates). Returns the core's dict."""
-    settings = obj.raysplats
-    if obj.mode == "EDIT":
-        obj.update_from_editmode()
-    # The evaluated object's data is the mesh after modifiers, shape keys and deformers; reading it directly
-    # avoids the full copy that to_mesh() makes (2.4 s for 1.5 M splats).
-    mesh = obj.evaluated_get(depsgraph).data if apply_modifiers else obj.data
+def recover_mesh_gaussians(core, mesh, settings, mesh_to_output):
+    """Recovers one Gaussian per face of `mesh` (an evaluated Gaussian mesh) in the space given by
+    mesh_to_output (4x4, applied to the mesh's own coordinates). Returns the core's dict."""
     vertex_positions, corner_vertices, face_corner_start, face_corner_count = mesh_arrays(mesh)
     attributes = face_attributes(mesh, settings.sh_degree)
     return core.recover_gaussians(
         vertex_positions, corner_vertices, face_corner_start, face_corner_count,
         settings.vertices_per_polygon, settings.radius, np.ascontiguousarray(mesh_to_output, dtype=np.float64),
         **attributes)
+
+
+def recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers=True):
+    """Recovers the Gaussians of one Gaussian object, evaluated (modifiers, shape keys, armatures) or not."""
+    if obj.mode == "EDIT":
+        obj.update_from_editmode()
+    # The evaluated object's data is the mesh after modifiers, shape keys and deformers; reading it directly
+    # avoids the full copy that to_mesh() makes (2.4 s for 1.5 M splats).
+    mesh = obj.evaluated_get(depsgraph).data if apply_modifiers else obj.data
+    return recover_mesh_gaussians(core, mesh, obj.raysplats, mesh_to_output)

@@ -17,6 +17,8 @@
 namespace py = pybind11;
 using namespace pybind11::literals;
 
+void register_render_bindings(py::module_& m);  // render_bindings.cpp
+
 namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
@@ -204,4 +206,5 @@ PYBIND11_MODULE(_native, m) {
           "rest_rotations"_a = py::none(), "rest_scales"_a = py::none(),
           "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
+    register_render_bindings(m);
 }

@@ -1,0 +1,64 @@
+# Render settings of the RaySplats engine: scene.raysplats (stable names, scripts rely on them) and the
+# panoramic camera settings Blender 3.x keeps in Cycles' properties (camera.data.raysplats).
+import math
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+
+class RaySplatsRenderSettings(bpy.types.PropertyGroup):
+    samples: IntProperty(name="Samples", default=16, min=1, max=1 << 16,
+                         description="Samples per pixel of the final render")
+    viewport_samples: IntProperty(name="Viewport Samples", default=16, min=1, max=1 << 12,
+                                  description="Samples the viewport accumulates before it stops refining")
+    max_bounces: IntProperty(name="Max Bounces", default=4, min=0, max=1024,
+                             description="Reflections and refractions followed per path (0: direct light only)")
+    compositing: EnumProperty(
+        name="Compositing", default="SORTED",
+        items=(("SORTED", "Sorted", "Gaussians composited in exact depth order (the reference)"),
+               ("STOCHASTIC", "Stochastic", "Each Gaussian accepted with probability alpha: no sorting, faster "
+                                           "per sample, converges to the sorted image with more samples")),
+        description="How Gaussians along a ray are combined")
+    transmittance_threshold: FloatProperty(
+        name="Transmittance Threshold", default=1e-3, min=0.0, max=0.5, precision=4,
+        description="Stop compositing Gaussians once less than this fraction of light gets through")
+    gaussian_mode: EnumProperty(
+        name="Gaussians", default="FLAT",
+        items=(("FLAT", "Flat", "Each Gaussian is a flat disk evaluated exactly where the ray meets its plane"),
+               ("VOLUMETRIC", "Volumetric", "Each Gaussian is an ellipsoid (uses the stored thickness)")),
+        description="Geometry the Gaussians are traced as")
+    meshes_shadow_gaussians: BoolProperty(
+        name="Meshes Shadow Gaussians", default=False,
+        description="Darken Gaussians that meshes hide from the lights (Gaussians otherwise keep their baked light)")
+    seed: IntProperty(name="Seed", default=0, min=0, description="Seed of the sampling pattern")
+
+
+class RaySplatsCameraSettings(bpy.types.PropertyGroup):
+    panorama_type: EnumProperty(
+        name="Panorama Type", default="EQUIRECTANGULAR",
+        items=(("EQUIRECTANGULAR", "Equirectangular", "Longitude/latitude projection"),
+               ("FISHEYE_EQUIDISTANT", "Fisheye Equidistant", "Image radius proportional to the angle"),
+               ("FISHEYE_EQUISOLID", "Fisheye Equisolid", "Real fisheye lens model")),
+        description="Projection of a panoramic camera (Blender 4 has these on the camera itself)")
+    fisheye_fov: FloatProperty(name="Field of View", default=math.pi, min=0.1, max=2 * math.pi, subtype="ANGLE")
+    fisheye_lens: FloatProperty(name="Fisheye Lens", default=10.5, min=0.01, max=100.0, unit="CAMERA")
+    latitude_min: FloatProperty(name="Min Latitude", default=-math.pi / 2, min=-math.pi / 2, max=math.pi / 2,
+                                subtype="ANGLE")
+    latitude_max: FloatProperty(name="Max Latitude", default=math.pi / 2, min=-math.pi / 2, max=math.pi / 2,
+                                subtype="ANGLE")
+    longitude_min: FloatProperty(name="Min Longitude", default=-math.pi, min=-math.pi, max=math.pi, subtype="ANGLE")
+    longitude_max: FloatProperty(name="Max Longitude", default=math.pi, min=-math.pi, max=math.pi, subtype="ANGLE")
+
+
+def register():
+    bpy.utils.register_class(RaySplatsRenderSettings)
+    bpy.utils.register_class(RaySplatsCameraSettings)
+    bpy.types.Scene.raysplats = PointerProperty(type=RaySplatsRenderSettings)
+    bpy.types.Camera.raysplats = PointerProperty(type=RaySplatsCameraSettings)
+
+
+def unregister():
+    del bpy.types.Camera.raysplats
+    del bpy.types.Scene.raysplats
+    bpy.utils.unregister_class(RaySplatsCameraSettings)
+    bpy.utils.unregister_class(RaySplatsRenderSettings)

@@ -1,0 +1,105 @@
+# Render Properties panels of the RaySplats engine, and the Blender panels it is compatible with.
+import bpy
+
+ENGINE = "RAYSPLATS"
+
+# Blender's own panels that work unchanged with this engine (dimensions, output, camera, light, material).
+_COMPATIBLE_PANELS = (
+    "RENDER_PT_format", "RENDER_PT_frame_range", "RENDER_PT_output", "RENDER_PT_color_management",
+    "RENDER_PT_film", "DATA_PT_camera", "DATA_PT_lens", "DATA_PT_camera_display", "DATA_PT_light",
+    "DATA_PT_EEVEE_light", "DATA_PT_area", "DATA_PT_spot", "EEVEE_MATERIAL_PT_surface", "MATERIAL_PT_preview",
+    "EEVEE_WORLD_PT_surface", "WORLD_PT_context_world", "VIEWLAYER_PT_layer_passes", "RENDER_PT_format_presets",
+)
+
+
+class RaySplatsPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class RAYSPLATS_RENDER_PT_sampling(RaySplatsPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.raysplats
+        layout.prop(settings, "samples", text="Render")
+        layout.prop(settings, "viewport_samples", text="Viewport")
+        layout.prop(settings, "seed")
+
+
+class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
+    bl_label = "Gaussians"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.raysplats
+        layout.prop(settings, "gaussian_mode")
+        layout.prop(settings, "compositing")
+        layout.prop(settings, "transmittance_threshold")
+        layout.prop(settings, "meshes_shadow_gaussians")
+
+
+class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        self.layout.prop(context.scene.raysplats, "max_bounces")
+
+
+class RAYSPLATS_CAMERA_PT_panorama(bpy.types.Panel):
+    bl_label = "Panorama (RaySplats)"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "data"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        camera = context.camera
+        return (context.engine == ENGINE and camera is not None and camera.type == "PANO"
+                and not hasattr(camera, "panorama_type"))  # Blender 4 shows its own settings
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.camera.raysplats
+        layout.prop(settings, "panorama_type")
+        if settings.panorama_type == "EQUIRECTANGULAR":
+            for key in ("latitude_min", "latitude_max", "longitude_min", "longitude_max"):
+                layout.prop(settings, key)
+        else:
+            layout.prop(settings, "fisheye_fov")
+            if settings.panorama_type == "FISHEYE_EQUISOLID":
+                layout.prop(settings, "fisheye_lens")
+
+
+_CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_light_paths,
+            RAYSPLATS_CAMERA_PT_panorama)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    for name in _COMPATIBLE_PANELS:
+        panel = getattr(bpy.types, name, None)
+        if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
+            panel.COMPAT_ENGINES.add(ENGINE)
+
+
+def unregister():
+    for name in _COMPATIBLE_PANELS:
+        panel = getattr(bpy.types, name, None)
+        if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
+            panel.COMPAT_ENGINES.discard(ENGINE)
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)
