@@ -1,0 +1,299 @@
+# The RaySplats engine inside Blender: F12 on splats with meshes, shadows through splats, mirrors, headless
+# command-line rendering, animation of deformed splats, cancellation, empty scenes and missing cameras.
+import math
+import os
+import subprocess
+import sys
+import time
+import unittest
+
+import bpy
+import mathutils
+import numpy as np
+
+import splat_testing as st
+
+DONUT = "donut_sh0.ply"
+
+
+def new_scene(width=160, height=120, samples=4):
+    st.reset_scene()
+    scene = bpy.context.scene
+    scene.render.engine = "RAYSPLATS"
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.raysplats.samples = samples
+    scene.view_settings.view_transform = "Standard"
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = False
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    return scene
+
+
+def add_donut(location, up_axis="Z"):
+    obj = st.import_file(DONUT, up_axis=up_axis)
+    # Centre the donut's splats on `location` (object origin = centroid of the Gaussian centres).
+    centres = st.native().read_splats(st.data_file(DONUT))["positions"].astype(np.float64)
+    obj.location = mathutils.Vector(location) - mathutils.Vector(centres.mean(axis=0))
+    return obj
+
+
+def add_camera(location, direction, ortho_scale=None, lens=50.0):
+    data = bpy.data.cameras.new("Camera")
+    if ortho_scale is not None:
+        data.type, data.ortho_scale = "ORTHO", ortho_scale
+    data.lens = lens
+    data.clip_start, data.clip_end = 0.01, 100.0
+    camera = bpy.data.objects.new("Camera", data)
+    bpy.context.scene.collection.objects.link(camera)
+    camera.location = location
+    camera.rotation_euler = mathutils.Vector(direction).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.camera = camera
+    return camera
+
+
+def diffuse_material(color, specular=0.0):
+    material = bpy.data.materials.new("Diffuse")
+    material.use_nodes = True
+    principled = material.node_tree.nodes["Principled BSDF"]
+    principled.inputs["Base Color"].default_value = (*color, 1.0)
+    principled.inputs["Roughness"].default_value = 1.0
+    specular_input = principled.inputs.get("Specular") or principled.inputs.get("Specular IOR Level")
+    specular_input.default_value = specular
+    return material
+
+
+def principled_material(name, **values):
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    principled = material.node_tree.nodes["Principled BSDF"]
+    for key, value in values.items():
+        principled.inputs[key].default_value = value
+    return material
+
+
+def render_to_array(name):
+    """Renders the scene with F12's operator and returns the linear RGBA image, rows bottom to top."""
+    scene = bpy.context.scene
+    path = st.tmp_file(name + ".exr")
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(path)
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    result = pixels.reshape(image.size[1], image.size[0], 4)
+    bpy.data.images.remove(image)
+    return result
+
+
+class RenderEngine(unittest.TestCase):
+    def test_engine_and_settings_are_registered(self):
+        scene = new_scene()
+        self.assertEqual(scene.render.engine, "RAYSPLATS")
+        for name in ("samples", "max_bounces", "compositing", "transmittance_threshold", "gaussian_mode",
+                     "meshes_shadow_gaussians", "seed"):
+            self.assertTrue(hasattr(scene.raysplats, name), name)
+
+    def test_splat_shadow_falls_along_the_sun_and_transmits_what_the_splats_let_through(self):
+        """A real splat object 0.3 above a white Lambertian plane, lit by a sun at 45°. The shadow's deficit
+        (1 - L/L0, integrated over the ground) must equal the splats' opacity integrated over a view along the
+        sun direction, divided by cos 45° (the shadow is stretched on the ground), and be centred where the
+        sun direction through the splats meets the ground. L0 must be the analytic rho·E·cos θ / π."""
+        scene = new_scene(width=320, height=320, samples=4)
+        # Direct light only: the splats' baked radiance would otherwise light the ground too (indirect).
+        scene.raysplats.max_bounces = 0
+        height, theta, irradiance, albedo = 0.3, math.radians(45), 2.0, 0.8
+        donut = add_donut((0.0, 0.0, height))
+        bpy.ops.mesh.primitive_plane_add(size=6.0, location=(0, 0, 0))
+        plane = bpy.context.object
+        plane.data.materials.append(diffuse_material((albedo, albedo, albedo)))
+        sun_direction = mathutils.Vector((-math.sin(theta), 0.0, -math.cos(theta)))
+        bpy.ops.object.light_add(type="SUN")
+        sun = bpy.context.object
+        sun.data.energy = irradiance
+        sun.data.angle = 0.0
+        sun.rotation_euler = sun_direction.to_track_quat("-Z", "Y").to_euler()
+
+        # View A: orthographic along the sun direction, splats only, transparent film: alpha = 1 - T.
+        plane.hide_render = True
+        scene.render.film_transparent = True
+        ortho_a = 0.5
+        add_camera(mathutils.Vector((0, 0, height)) - 5 * sun_direction, sun_direction, ortho_scale=ortho_a)
+        view_a = render_to_array("shadow_view_a")
+        opacity_integral = view_a[..., 3].sum() * (ortho_a / 320) ** 2
+        self.assertGreater(opacity_integral, 1e-3, "the splats must be visible along the sun")
+
+        # View B: straight down onto the ground, first the splats alone (to mask them), then with the plane.
+        ortho_b = 1.2
+        centre_b = mathutils.Vector((-0.2, 0.0, 5.0))
+        add_camera(centre_b, (0, 0, -1), ortho_scale=ortho_b)
+        splat_mask = render_to_array("shadow_view_b_mask")[..., 3] > 1e-3
+        plane.hide_render = False
+        scene.render.film_transparent = False
+        ground = render_to_array("shadow_view_b")
+        self.assertFalse(np.isnan(ground).any())
+
+        l0_expected = albedo * irradiance * math.cos(theta) / math.pi
+        luminance = ground[..., :3].mean(axis=2)
+        lit = luminance[:, :40][~splat_mask[:, :40]]  # the image's left edge, far from the shadow
+        self.assertAlmostEqual(float(np.median(lit)) / l0_expected, 1.0, delta=0.02)
+        deficit = np.where(splat_mask, 0.0, 1.0 - luminance / l0_expected)
+        pixel_area = (ortho_b / 320) ** 2
+        shadow_integral = deficit.sum() * pixel_area
+        self.assertAlmostEqual(shadow_integral * math.cos(theta) / opacity_integral, 1.0, delta=0.05)
+
+        # Where the shadow is: centroid of the deficit in world x, y.
+        rows, cols = np.indices(deficit.shape)
+        xs = centre_b.x + (cols + 0.5 - 160) * ortho_b / 320
+        ys = centre_b.y + (rows + 0.5 - 160) * ortho_b / 320  # rows run bottom to top
+        weights = np.clip(deficit, 0, None)
+        shadow_centre = np.array([(xs * weights).sum(), (ys * weights).sum()]) / weights.sum()
+        expected = np.array([-height * math.tan(theta), 0.0])
+        np.testing.assert_allclose(shadow_centre, expected, atol=0.03)
+        self.assertTrue(donut.raysplats.is_gaussian)
+
+    def test_mirror_shows_splat_colours_and_glass_renders_without_nan(self):
+        scene = new_scene(width=240, height=160, samples=8)
+        scene.world.color = (0.02, 0.02, 0.02)
+        add_donut((0.3, -0.3, 0.0))
+        bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.6, 0.0), rotation=(math.pi / 2, 0, 0))
+        mirror = bpy.context.object
+        mirror_material = principled_material("Mirror", Metallic=1.0, Roughness=0.0)
+        mirror_material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (1, 1, 1, 1)
+        mirror.data.materials.append(mirror_material)
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.15, location=(-0.5, 0.0, 0.0))
+        glass = principled_material("Glass", Roughness=0.0, IOR=1.5)
+        glass_node = glass.node_tree.nodes["Principled BSDF"]
+        (glass_node.inputs.get("Transmission Weight") or glass_node.inputs["Transmission"]).default_value = 1.0
+        bpy.context.object.data.materials.append(glass)
+        bpy.ops.object.light_add(type="SUN", rotation=(0.3, 0.2, 0.0))
+        camera = add_camera((0.0, -2.0, 0.0), (0, 1, 0), lens=35.0)
+
+        image = render_to_array("mirror")
+        self.assertFalse(np.isnan(image).any())
+        self.assertTrue(np.isfinite(image).all())
+
+        def pixel_of(point):
+            co = bpy_extras_world_to_camera(scene, camera, mathutils.Vector(point))
+            return int(co.y * image.shape[0]), int(co.x * image.shape[1])
+
+        donut_centre = (0.3, -0.3, 0.0)
+        reflected_centre = (0.3, 0.6 + (0.6 + 0.3), 0.0)  # mirrored across the plane y = 0.6
+        r_direct, c_direct = pixel_of(donut_centre)
+        r_mirror, c_mirror = pixel_of(reflected_centre)
+        direct = image[r_direct - 2:r_direct + 3, c_direct - 2:c_direct + 3, :3].reshape(-1, 3)
+        reflected = image[r_mirror - 2:r_mirror + 3, c_mirror - 2:c_mirror + 3, :3].reshape(-1, 3)
+        self.assertGreater(reflected.mean(), 5 * 0.02, "the mirror must show the splats, not the dark world")
+        # Splat colours in the mirror: the same hue as the splats seen directly.
+        chroma_direct = direct.mean(axis=0) / direct.mean()
+        chroma_reflected = reflected.mean(axis=0) / reflected.mean()
+        np.testing.assert_allclose(chroma_reflected, chroma_direct, atol=0.15)
+
+        # Without the mirror (black diffuse) the same pixels are dark: the colour came from the reflection.
+        mirror.data.materials[0] = diffuse_material((0.0, 0.0, 0.0))
+        image_black = render_to_array("mirror_black")
+        dark = image_black[r_mirror - 2:r_mirror + 3, c_mirror - 2:c_mirror + 3, :3]
+        self.assertLess(dark.mean(), 0.2 * reflected.mean())
+
+    def test_animation_of_a_deformed_splat_object_changes_only_where_it_deforms(self):
+        scene = new_scene(width=200, height=100, samples=2)
+        scene.world.color = (0.05, 0.05, 0.05)
+        moving = add_donut((-0.15, 0.0, 0.0))
+        add_donut((0.15, 0.0, 0.0))
+        lattice_data = bpy.data.lattices.new("Lattice")
+        lattice = bpy.data.objects.new("Lattice", lattice_data)
+        scene.collection.objects.link(lattice)
+        lattice.location = (-0.15, 0.0, 0.0)
+        lattice.scale = (0.4, 0.4, 0.4)
+        modifier = moving.modifiers.new("Lattice", "LATTICE")
+        modifier.object = lattice
+        # Keyframe the lattice points: frame 1 at rest, frame 2 squashed in x.
+        lattice.shape_key_add(name="Basis")
+        squash = lattice.shape_key_add(name="Squash")
+        for point in squash.data:
+            point.co.x *= 0.6
+        squash.value = 0.0
+        squash.keyframe_insert("value", frame=1)
+        squash.value = 1.0
+        squash.keyframe_insert("value", frame=2)
+        add_camera((0.0, 0.0, 3.0), (0, 0, -1), ortho_scale=0.6)
+        scene.frame_start, scene.frame_end = 1, 2
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.filepath = st.tmp_file("anim_####")
+        bpy.ops.render.render(animation=True)
+        frames = []
+        for frame in (1, 2):
+            image = bpy.data.images.load(st.tmp_file(f"anim_{frame:04d}.exr"))
+            pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+            image.pixels.foreach_get(pixels)
+            frames.append(pixels.reshape(image.size[1], image.size[0], 4))
+        difference = np.abs(frames[1] - frames[0])[..., :3].sum(axis=2)
+        left, right = difference[:, :100], difference[:, 100:]
+        self.assertGreater(left.sum(), 1.0, "the lattice-deformed splats must change between frames")
+        self.assertEqual(float(right.sum()), 0.0, "the untouched splats must render identically")
+
+    @unittest.skipIf(not bpy.app.binary_path, "Blender as a Python module has no command line")
+    def test_headless_command_line_render(self):
+        scene = new_scene(width=64, height=48, samples=2)
+        scene.world.color = (0.1, 0.2, 0.3)
+        add_donut((0.0, 0.0, 0.0))
+        add_camera((0.0, -0.6, 0.0), (0, 1, 0))
+        blend = st.tmp_file("headless.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+        output = st.tmp_file("headless_")
+        for old in (output + "0001.png",):
+            if os.path.exists(old):
+                os.remove(old)
+        addon_dir = os.path.dirname(os.path.dirname(os.path.abspath(sys.modules["raysplats"].__file__)))
+        register = f"import sys; sys.path.insert(0, {addon_dir!r}); import raysplats; raysplats.register()"
+        process = subprocess.run(
+            [bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-expr", register,
+             "-E", "RAYSPLATS", "-o", output + "####", "-F", "PNG", "-f", "1"],
+            capture_output=True, text=True, timeout=300)
+        self.assertEqual(process.returncode, 0, process.stdout[-2000:] + process.stderr[-2000:])
+        self.assertTrue(os.path.exists(output + "0001.png"), process.stdout[-2000:])
+        image = bpy.data.images.load(output + "0001.png")
+        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        self.assertEqual(tuple(image.size), (64, 48))
+        # The splats cover the centre; the corners show the world colour.
+        rgb = pixels.reshape(48, 64, 4)[..., :3]
+        self.assertGreater(np.abs(rgb[20:28, 28:36] - rgb[0, 0]).mean(), 0.05)
+
+    def test_empty_scene_renders_the_world(self):
+        scene = new_scene(width=32, height=24, samples=1)
+        scene.world.color = (0.2, 0.3, 0.4)
+        add_camera((0, 0, 0), (0, 1, 0))
+        image = render_to_array("empty")
+        np.testing.assert_allclose(image[..., :3].reshape(-1, 3).mean(axis=0), (0.2, 0.3, 0.4), atol=1e-4)
+
+    def test_scene_without_camera_is_a_clear_error(self):
+        new_scene()
+        add_donut((0, 0, 0))
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.render.render()
+        self.assertIn("camera", str(raised.exception).lower())
+
+    def test_native_render_job_cancels_promptly(self):
+        scene = new_scene(width=400, height=300, samples=4096)
+        add_donut((0, 0, 0))
+        add_camera((0.0, -0.6, 0.0), (0, 1, 0))
+        from raysplats.engine import sync
+        core = st.native()
+        render_scene, _ = sync.build_render_scene(bpy.context.evaluated_depsgraph_get())
+        camera = sync.camera_settings(scene, scene.camera, 400, 300)
+        job = core.RenderJob(render_scene, camera, sync.render_settings(scene, 400, 300, 4096))
+        self.assertFalse(job.wait(0.3))
+        start = time.perf_counter()
+        job.cancel()
+        self.assertTrue(job.wait(1.0))
+        self.assertLess(time.perf_counter() - start, 0.5)
+        self.assertTrue(job.result()["cancelled"])
+
+
+def bpy_extras_world_to_camera(scene, camera, point):
+    from bpy_extras.object_utils import world_to_camera_view
+    return world_to_camera_view(scene, camera, point)
