@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/resource.h>
+
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 
@@ -31,6 +33,13 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// CPU seconds of the whole process (all threads): robust against other jobs sharing the machine.
+double cpu_seconds() {
+    rusage u;
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 GaussianCloud read_inria_ply(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -216,18 +225,27 @@ int main(int argc, char** argv) {
             st.compositing = comp;
             st.gaussian_mode = mode;
             render(scene, cam, st);  // warm-up (page faults, TBB threads)
+            const double cpu0 = cpu_seconds();
             const Film f = render(scene, cam, st);
+            const double cpu = cpu_seconds() - cpu0;
             const double s = f.stats.render_seconds;
             if (print)
                 std::printf("%-10s %-10s  build %.3f s | frame %.3f s | %.2f Mrays/s | %.1f Gaussian hits/ray | "
-                            "%.2f traversals/ray | %.0f candidates/ray\n",
+                            "%.2f traversals/ray | %.0f candidates/ray | %.2f us CPU/ray\n",
                             comp == Compositing::Sorted ? "sorted" : "stochastic",
                             mode == GaussianMode::Flat ? "flat" : "volumetric", build, s, rays / s / 1e6,
                             double(f.stats.gaussian_hits) / rays, double(f.stats.traced_rays) / rays,
-                            double(f.stats.gaussian_candidates) / rays);
+                            double(f.stats.gaussian_candidates) / rays, cpu / rays * 1e6);
             return s;
         };
 
+        if (const char* only = std::getenv("RAYSPLATS_BENCH_ONLY")) {
+            // One configuration, for profilers: sorted | stochastic (flat mode).
+            double bb;
+            run(cloud, std::string(only) == "stochastic" ? Compositing::Stochastic : Compositing::Sorted,
+                GaussianMode::Flat, bb, true);
+            return 0;
+        }
         double build_flat, build_vol, b;
         if (const char* out = std::getenv("RAYSPLATS_BENCH_IMAGE")) {
             // Writes the sorted frame for a look at what the benchmark sees.

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include "raysplats/spherical_harmonics.h"
 #include "render_math.h"
@@ -163,8 +164,37 @@ void GaussianSet::prepare(GaussianMode mode) {
     world_to_object_dir = a_inv;
     const bool deg0 = c.sh_degree == 0;
     if (deg0) linear_rgb.resize(3 * n);
+
+    // Morton order (10 bits per axis) of the object-space centres.
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (std::size_t i = 0; i < n; ++i) {
+        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-30f));
+    auto spread = [](std::uint64_t v) {  // 10 bits -> every third bit
+        v &= 0x3ff;
+        v = (v | (v << 16)) & 0x30000ff;
+        v = (v | (v << 8)) & 0x300f00f;
+        v = (v | (v << 4)) & 0x30c30c3;
+        v = (v | (v << 2)) & 0x9249249;
+        return v;
+    };
+    std::vector<std::uint64_t> keyed(n);
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+        const glm::vec3 q = glm::clamp((p - lo) / extent, 0.0f, 1.0f) * 1023.0f;
+        const std::uint64_t code = spread(std::uint64_t(q.x)) | (spread(std::uint64_t(q.y)) << 1) | (spread(std::uint64_t(q.z)) << 2);
+        keyed[i] = (code << 32) | std::uint64_t(i);
+    });
+    tbb::parallel_sort(keyed.begin(), keyed.end());
+    cloud_index.resize(n);
+    for (std::size_t j = 0; j < n; ++j) cloud_index[j] = std::uint32_t(keyed[j] & 0xffffffffu);
+
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const std::size_t i = cloud_index[j];
             const float* q = &c.rotations[4 * i];
             glm::vec4 qq(q[0], q[1], q[2], q[3]);
             const float qn = glm::length(qq);
@@ -181,7 +211,7 @@ void GaussianSet::prepare(GaussianMode mode) {
             std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
             const float smax = std::max(s[order[0]], 1e-30f);
             auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
-            GaussianPrimitive& g = prims[i];
+            GaussianPrimitive& g = prims[j];
             g.center = a * glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]) + b;
             g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
             // row_world = A^-T row_object  (so that row_world . (x_world - m_world) = row_object . (x_obj - m_obj))
@@ -191,7 +221,7 @@ void GaussianSet::prepare(GaussianMode mode) {
             g.pad0 = g.pad1 = g.pad2 = 0.0f;
             if (deg0) {
                 for (int ch = 0; ch < 3; ++ch)
-                    linear_rgb[3 * i + ch] =
+                    linear_rgb[3 * j + ch] =
                         srgb_to_linear(std::max(0.0f, 0.5f + float(kShC0) * c.sh[3 * i + ch]));
             }
         }
@@ -205,7 +235,7 @@ glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     const float len = glm::length(dir);
     dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
     const int k = cloud->coeffs_per_channel();
-    const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(i) * k * 3], dir.x, dir.y, dir.z);
+    const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(cloud_index[i]) * k * 3], dir.x, dir.y, dir.z);
     return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
 

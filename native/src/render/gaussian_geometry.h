@@ -65,13 +65,16 @@ struct GaussianSet {
     Matrix4 object_to_world;
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: view directions into the frame of the SH coefficients
     bool flat = true;
+    // Primitives are stored in Morton order of their centres (primID = position in this order), so that
+    // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines.
     std::vector<GaussianPrimitive> prims;
-    std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per Gaussian
+    std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
+    std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
     std::uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
 
     // Computes prims (and colours) for the mode, in parallel.
     void prepare(GaussianMode mode);
-    // Linear colour of Gaussian i seen from `origin` (world).
+    // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
     // Creates the Embree user geometry (bounds + intersect + occluded callbacks).
     RTCGeometry create_geometry(RTCDevice device);
