@@ -53,78 +53,86 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     b->upper_z = g.center.z + half.z;
 }
 
-// Intersect callback for rtcIntersect1 (N == 1). Never reports a hit in Gather mode: it fills the per-ray
-// k-nearest buffer and, once the buffer is full, shrinks tfar to the k-th distance so that traversal culls
-// everything behind it (a mesh hit that lies behind is dropped and found again by the next re-trace).
+// Intersect callback for rtcIntersect1 and ray packets (any N; the accessors of rtcore_ray.h address lane i).
+// Never reports a hit in Gather mode: it fills the per-ray k-nearest buffer and, once the buffer is full (or
+// saturated), shrinks tfar so that traversal culls everything behind it (a mesh hit that lies behind is dropped
+// and found again by the next re-trace).
 void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
-    if (args->N != 1 || !args->valid[0] || ctx->mode == TraceMode::MeshesOnly) return;
-    ++ctx->candidates;
+    if (ctx->mode == TraceMode::MeshesOnly) return;
     const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
-    RTCRayHit* rh = reinterpret_cast<RTCRayHit*>(args->rayhit);
     const GaussianPrimitive& g = set->prims[args->primID];
-    const glm::vec3 o(rh->ray.org_x, rh->ray.org_y, rh->ray.org_z);
-    const glm::vec3 d(rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z);
-    float t, dist2;
-    if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) return;
-    if (!(t >= rh->ray.tnear && t <= rh->ray.tfar)) return;
-    const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
-    if (alpha < kMinAlpha) return;
+    const unsigned n = args->N;
+    RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
+    RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        LaneState& L = ctx->lanes[i];
+        ++L.candidates;
+        const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
+        const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
+        float t, dist2;
+        if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) continue;
+        float& tfar = RTCRayN_tfar(ray, n, i);
+        if (!(t >= RTCRayN_tnear(ray, n, i) && t <= tfar)) continue;
+        const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
+        if (alpha < kMinAlpha) continue;
 
-    if (ctx->mode == TraceMode::Gather) {
-        const std::uint64_t key = gather_key(args->geomID, args->primID);
-        if (ctx->has_after && (t < ctx->after_t || (t == ctx->after_t && key <= ctx->after_key))) return;
-        int pos;
-        const int k = ctx->capacity;
-        if (ctx->count < k) {
-            pos = ctx->count++;
-        } else {
-            if (!hit_before(t, key, ctx->hits[k - 1])) return;
-            pos = k - 1;
-        }
-        while (pos > 0 && hit_before(t, key, ctx->hits[pos - 1])) {
-            ctx->hits[pos] = ctx->hits[pos - 1];
-            --pos;
-        }
-        ctx->hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
-        // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
-        float T = pos > 0 ? ctx->prefix[pos - 1] : ctx->base_transmittance;
-        int cut = -1;
-        for (int i = pos; i < ctx->count; ++i) {
-            T *= 1.0f - ctx->hits[i].alpha;
-            ctx->prefix[i] = T;
-            if (T < ctx->transmittance_threshold) {
-                cut = i;
-                break;
+        if (ctx->mode == TraceMode::Gather) {
+            const std::uint64_t key = gather_key(args->geomID, args->primID);
+            if (L.has_after && (t < L.after_t || (t == L.after_t && key <= L.after_key))) continue;
+            int pos;
+            const int k = L.capacity;
+            if (L.count < k) {
+                pos = L.count++;
+            } else {
+                if (!hit_before(t, key, L.hits[k - 1])) continue;
+                pos = k - 1;
             }
+            while (pos > 0 && hit_before(t, key, L.hits[pos - 1])) {
+                L.hits[pos] = L.hits[pos - 1];
+                --pos;
+            }
+            L.hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
+            // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
+            float T = pos > 0 ? L.prefix[pos - 1] : L.base_transmittance;
+            int cut = -1;
+            for (int j = pos; j < L.count; ++j) {
+                T *= 1.0f - L.hits[j].alpha;
+                L.prefix[j] = T;
+                if (T < L.transmittance_threshold) {
+                    cut = j;
+                    break;
+                }
+            }
+            float far = tfar;
+            if (cut >= 0) {
+                L.count = cut + 1;
+                far = L.hits[cut].t;
+            } else if (L.count == k) {
+                far = L.hits[k - 1].t;
+            }
+            if (far < tfar) {
+                tfar = far;
+                // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
+                RTCHitN_geomID(hit, n, i) = RTC_INVALID_GEOMETRY_ID;
+                RTCHitN_instID(hit, n, i, 0) = RTC_INVALID_GEOMETRY_ID;
+            }
+        } else if (ctx->mode == TraceMode::Stochastic) {
+            // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
+            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(args->geomID, args->primID)));
+            if (u >= alpha) continue;
+            tfar = t;
+            const glm::vec3 nrm = set->flat ? g.row2 : -d;
+            RTCHitN_Ng_x(hit, n, i) = nrm.x;
+            RTCHitN_Ng_y(hit, n, i) = nrm.y;
+            RTCHitN_Ng_z(hit, n, i) = nrm.z;
+            RTCHitN_u(hit, n, i) = alpha;
+            RTCHitN_v(hit, n, i) = 0.0f;
+            RTCHitN_primID(hit, n, i) = args->primID;
+            RTCHitN_geomID(hit, n, i) = args->geomID;
+            RTCHitN_instID(hit, n, i, 0) = args->context->instID[0];
         }
-        float far = rh->ray.tfar;
-        if (cut >= 0) {
-            ctx->count = cut + 1;
-            far = ctx->hits[cut].t;
-        } else if (ctx->count == k) {
-            far = ctx->hits[k - 1].t;
-        }
-        if (far < rh->ray.tfar) {
-            rh->ray.tfar = far;
-            // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
-            rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        }
-    } else if (ctx->mode == TraceMode::Stochastic) {
-        // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
-        const float u = u32_to_unit_float(hash_combine(ctx->seed, hash_combine(args->geomID, args->primID)));
-        if (u >= alpha) return;
-        rh->ray.tfar = t;
-        rh->hit.u = alpha;
-        rh->hit.v = 0.0f;
-        const glm::vec3 n = set->flat ? g.row2 : -d;
-        rh->hit.Ng_x = n.x;
-        rh->hit.Ng_y = n.y;
-        rh->hit.Ng_z = n.z;
-        rh->hit.primID = args->primID;
-        rh->hit.geomID = args->geomID;
-        rh->hit.instID[0] = args->context->instID[0];
     }
 }
 
@@ -133,6 +141,7 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
 void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (args->N != 1 || !args->valid[0] || ctx->mode != TraceMode::Transmittance) return;
+    LaneState& L = ctx->lanes[0];
     const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
     RTCRay* ray = reinterpret_cast<RTCRay*>(args->ray);
     const GaussianPrimitive& g = set->prims[args->primID];
@@ -143,9 +152,9 @@ void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     if (!(t >= ray->tnear && t <= ray->tfar)) return;
     const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
     if (alpha < kMinAlpha) return;
-    ctx->transmittance *= 1.0f - alpha;
-    if (ctx->transmittance <= ctx->transmittance_threshold) {
-        ctx->transmittance = 0.0f;
+    L.transmittance *= 1.0f - alpha;
+    if (L.transmittance <= L.transmittance_threshold) {
+        L.transmittance = 0.0f;
         ray->tfar = -std::numeric_limits<float>::infinity();
     }
 }

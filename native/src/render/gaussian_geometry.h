@@ -98,8 +98,8 @@ struct GatherHit {
 
 constexpr int kGatherCapacity = 64;  // upper bound of RenderSettings::gather_buffer_size
 
-struct TraceContext : RTCIntersectContext {
-    TraceMode mode = TraceMode::Gather;
+// Per-ray state of a traversal.
+struct LaneState {
     // Gather: hits strictly after (after_t, after_key) in (t, key) order, key = geom << 32 | prim.
     float after_t = -1e30f;
     std::uint64_t after_key = 0;
@@ -116,11 +116,17 @@ struct TraceContext : RTCIntersectContext {
     std::uint32_t seed = 0;
     // Statistics: Gaussian callbacks (bounding-box candidates) during the traversal.
     std::uint64_t candidates = 0;
-    // Transmittance.
+    // Transmittance (shadow rays) and the compositing threshold.
     float transmittance = 1.0f;
     float transmittance_threshold = 0.0f;
+};
 
-    TraceContext() { rtcInitIntersectContext(this); }
+// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data):
+// lane i of a ray packet uses lanes[i]; single rays use lanes[0].
+struct TraceContext : RTCIntersectContext {
+    TraceMode mode = TraceMode::Gather;
+    LaneState* lanes;
+    TraceContext(LaneState* lane_array, TraceMode m) : mode(m), lanes(lane_array) { rtcInitIntersectContext(this); }
 };
 
 inline std::uint64_t gather_key(std::uint32_t geom, std::uint32_t prim) { return (std::uint64_t(geom) << 32) | prim; }
