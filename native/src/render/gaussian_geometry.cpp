@@ -87,6 +87,7 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
                 pos = L.count++;
             } else {
                 if (!hit_before(t, key, L.hits[k - 1])) continue;
+                L.product /= 1.0f - L.hits[k - 1].alpha;  // evicted
                 pos = k - 1;
             }
             while (pos > 0 && hit_before(t, key, L.hits[pos - 1])) {
@@ -94,15 +95,19 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
                 --pos;
             }
             L.hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
-            // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
-            float T = pos > 0 ? L.prefix[pos - 1] : L.base_transmittance;
+            L.product *= 1.0f - alpha;
             int cut = -1;
-            for (int j = pos; j < L.count; ++j) {
-                T *= 1.0f - L.hits[j].alpha;
-                L.prefix[j] = T;
-                if (T < L.transmittance_threshold) {
-                    cut = j;
-                    break;
+            if (L.base_transmittance * L.product < L.transmittance_threshold) {
+                // Exact scan for the first index where the transmittance falls below the threshold.
+                float T = L.base_transmittance, P = 1.0f;
+                for (int j = 0; j < L.count; ++j) {
+                    P *= 1.0f - L.hits[j].alpha;
+                    T *= 1.0f - L.hits[j].alpha;
+                    if (T < L.transmittance_threshold) {
+                        cut = j;
+                        L.product = P;
+                        break;
+                    }
                 }
             }
             float far = tfar;

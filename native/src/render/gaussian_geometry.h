@@ -107,10 +107,12 @@ struct LaneState {
     int count = 0;
     int capacity = 48;  // k, <= kGatherCapacity
     GatherHit hits[kGatherCapacity];
-    // prefix[i] = base_transmittance * prod_{j <= i} (1 - hits[j].alpha). Once it drops below the threshold the
-    // true transmittance there is lower still (unseen hits can only lower it), so everything behind hits[i] is
-    // irrelevant: the buffer is cut there and tfar shrinks to hits[i].t. Exact, and it bounds traversal depth.
-    float prefix[kGatherCapacity];
+    // product = prod over the buffer of (1 - alpha), order-independent, kept incrementally. When
+    // base_transmittance * product drops below the threshold, the buffer is scanned for the first i where
+    // base * prod_{j <= i} (1 - alpha_j) does: the true transmittance there is lower still (unseen hits can only
+    // lower it), so everything behind hits[i] is irrelevant: the buffer is cut there and tfar shrinks to hits[i].t.
+    // Exact, and it bounds the traversal depth like an opaque hit would.
+    float product = 1.0f;
     float base_transmittance = 1.0f;
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;

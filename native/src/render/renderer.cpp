@@ -148,8 +148,10 @@ public:
             return true;
         }
         // Every Gaussian of the segment was gathered unless the buffer overflowed.
-        const bool saturated = L.count > 0 && L.prefix[L.count - 1] < st_.transmittance_threshold;
-        if (L.count < L.capacity || saturated) return true;
+        if (L.count < L.capacity) return true;
+        float T = L.base_transmittance;
+        for (int i = 0; i < L.count; ++i) T *= 1.0f - L.hits[i].alpha;
+        if (T < st_.transmittance_threshold) return true;  // the buffer was cut where it saturated
         const GatherHit& last = L.hits[L.capacity - 1];
         L.after_t = last.t;
         L.after_key = gather_key(last.geom, last.prim);
@@ -164,6 +166,7 @@ public:
             RTCRayHit rh;
             init_rayhit(rh, ray, L.has_after ? L.after_t : ray.tmin);
             L.count = 0;
+            L.product = 1.0f;
             L.base_transmittance = seg.transmittance;
             rtcIntersect1(s_.scene, &ctx, &rh);
             if (consume_gather(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
