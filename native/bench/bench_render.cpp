@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/resource.h>
+
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 
@@ -31,6 +33,13 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// CPU seconds of the whole process (all threads): robust against other jobs sharing the machine.
+double cpu_seconds() {
+    rusage u;
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 GaussianCloud read_inria_ply(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -105,7 +114,8 @@ GaussianCloud subset(const GaussianCloud& c, std::size_t m) {
 
 // Embree's plain closest hit on the flat proxies (one quad over each Gaussian's 3-sigma disk, as two triangles),
 // for the same camera rays: the floor under any traversal of this geometry.
-double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, int h, double& build_seconds) {
+double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, int h, double& build_seconds,
+                            double& cpu) {
     RTCDevice dev = rtcNewDevice(nullptr);
     RTCScene scene = rtcNewScene(dev);
     RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -138,6 +148,7 @@ double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, in
     rtcCommitScene(scene);
     build_seconds = seconds_since(t0);
     t0 = Clock::now();
+    const double cpu0 = cpu_seconds();
     tbb::parallel_for(tbb::blocked_range<int>(0, h, 4), [&](const tbb::blocked_range<int>& r) {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
@@ -161,6 +172,7 @@ double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, in
             }
     });
     const double s = seconds_since(t0);
+    cpu = cpu_seconds() - cpu0;
     rtcReleaseScene(scene);
     rtcReleaseDevice(dev);
     return s;
@@ -216,18 +228,27 @@ int main(int argc, char** argv) {
             st.compositing = comp;
             st.gaussian_mode = mode;
             render(scene, cam, st);  // warm-up (page faults, TBB threads)
+            const double cpu0 = cpu_seconds();
             const Film f = render(scene, cam, st);
+            const double cpu = cpu_seconds() - cpu0;
             const double s = f.stats.render_seconds;
             if (print)
                 std::printf("%-10s %-10s  build %.3f s | frame %.3f s | %.2f Mrays/s | %.1f Gaussian hits/ray | "
-                            "%.2f traversals/ray | %.0f candidates/ray\n",
+                            "%.2f traversals/ray | %.0f candidates/ray | %.2f us CPU/ray\n",
                             comp == Compositing::Sorted ? "sorted" : "stochastic",
                             mode == GaussianMode::Flat ? "flat" : "volumetric", build, s, rays / s / 1e6,
                             double(f.stats.gaussian_hits) / rays, double(f.stats.traced_rays) / rays,
-                            double(f.stats.gaussian_candidates) / rays);
+                            double(f.stats.gaussian_candidates) / rays, cpu / rays * 1e6);
             return s;
         };
 
+        if (const char* only = std::getenv("RAYSPLATS_BENCH_ONLY")) {
+            // One configuration, for profilers: sorted | stochastic (flat mode).
+            double bb;
+            run(cloud, std::string(only) == "stochastic" ? Compositing::Stochastic : Compositing::Sorted,
+                GaussianMode::Flat, bb, true);
+            return 0;
+        }
         double build_flat, build_vol, b;
         if (const char* out = std::getenv("RAYSPLATS_BENCH_IMAGE")) {
             // Writes the sorted frame for a look at what the benchmark sees.
@@ -240,12 +261,14 @@ int main(int argc, char** argv) {
         const double sorted_vol = run(cloud, Compositing::Sorted, GaussianMode::Volumetric, build_vol, true);
         const double stoch_vol = run(cloud, Compositing::Stochastic, GaussianMode::Volumetric, b, true);
 
-        double floor_build;
-        embree_floor_seconds(cloud, cam, width, height, floor_build);  // warm-up
-        const double floor = embree_floor_seconds(cloud, cam, width, height, floor_build);
-        std::printf("embree floor    closest hit on the quad proxies: build %.3f s, %.3f s/frame, %.2f Mrays/s\n",
-                    floor_build, floor, rays / floor / 1e6);
-        std::printf("ratio to floor  sorted flat %.1fx, stochastic flat %.1fx, sorted vol %.1fx, stochastic vol %.1fx\n",
+        double floor_build, floor_cpu;
+        embree_floor_seconds(cloud, cam, width, height, floor_build, floor_cpu);  // warm-up
+        const double floor = embree_floor_seconds(cloud, cam, width, height, floor_build, floor_cpu);
+        std::printf("embree floor    closest hit on the quad proxies: build %.3f s, %.3f s/frame, %.2f Mrays/s, "
+                    "%.2f us CPU/ray\n",
+                    floor_build, floor, rays / floor / 1e6, floor_cpu / rays * 1e6);
+        std::printf("ratio to floor  (wall time) sorted flat %.1fx, stochastic flat %.1fx, sorted vol %.1fx, "
+                    "stochastic vol %.1fx; compare the CPU us/ray figures when the machine is shared\n",
                     sorted_flat / floor, stoch_flat / floor, sorted_vol / floor, stoch_vol / floor);
         std::printf("targets         build <= 1 s: %.3f s (flat), %.3f s (volumetric); sorted <= 2 s: %.3f s; "
                     "stochastic <= 0.5 s: %.3f s\n",

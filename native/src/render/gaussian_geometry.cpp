@@ -5,6 +5,7 @@
 #include <limits>
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include "raysplats/spherical_harmonics.h"
 #include "render_math.h"
@@ -52,78 +53,91 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     b->upper_z = g.center.z + half.z;
 }
 
-// Intersect callback for rtcIntersect1 (N == 1). Never reports a hit in Gather mode: it fills the per-ray
-// k-nearest buffer and, once the buffer is full, shrinks tfar to the k-th distance so that traversal culls
-// everything behind it (a mesh hit that lies behind is dropped and found again by the next re-trace).
+// Intersect callback for rtcIntersect1 and ray packets (any N; the accessors of rtcore_ray.h address lane i).
+// Never reports a hit in Gather mode: it fills the per-ray k-nearest buffer and, once the buffer is full (or
+// saturated), shrinks tfar so that traversal culls everything behind it (a mesh hit that lies behind is dropped
+// and found again by the next re-trace).
 void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
-    if (args->N != 1 || !args->valid[0] || ctx->mode == TraceMode::MeshesOnly) return;
-    ++ctx->candidates;
+    if (ctx->mode == TraceMode::MeshesOnly) return;
     const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
-    RTCRayHit* rh = reinterpret_cast<RTCRayHit*>(args->rayhit);
     const GaussianPrimitive& g = set->prims[args->primID];
-    const glm::vec3 o(rh->ray.org_x, rh->ray.org_y, rh->ray.org_z);
-    const glm::vec3 d(rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z);
-    float t, dist2;
-    if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) return;
-    if (!(t >= rh->ray.tnear && t <= rh->ray.tfar)) return;
-    const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
-    if (alpha < kMinAlpha) return;
+    const unsigned n = args->N;
+    RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
+    RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        LaneState& L = ctx->lanes[i];
+        ++L.candidates;
+        const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
+        const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
+        float t, dist2;
+        if (!intersect_gaussian(g, set->flat, o, d, t, dist2)) continue;
+        float& tfar = RTCRayN_tfar(ray, n, i);
+        if (!(t >= RTCRayN_tnear(ray, n, i) && t <= tfar)) continue;
+        const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
+        if (alpha < kMinAlpha) continue;
 
-    if (ctx->mode == TraceMode::Gather) {
-        const std::uint64_t key = gather_key(args->geomID, args->primID);
-        if (ctx->has_after && (t < ctx->after_t || (t == ctx->after_t && key <= ctx->after_key))) return;
-        int pos;
-        const int k = ctx->capacity;
-        if (ctx->count < k) {
-            pos = ctx->count++;
-        } else {
-            if (!hit_before(t, key, ctx->hits[k - 1])) return;
-            pos = k - 1;
-        }
-        while (pos > 0 && hit_before(t, key, ctx->hits[pos - 1])) {
-            ctx->hits[pos] = ctx->hits[pos - 1];
-            --pos;
-        }
-        ctx->hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
-        // Update the transmittance prefix from the insertion point and cut the buffer where it saturates.
-        float T = pos > 0 ? ctx->prefix[pos - 1] : ctx->base_transmittance;
-        int cut = -1;
-        for (int i = pos; i < ctx->count; ++i) {
-            T *= 1.0f - ctx->hits[i].alpha;
-            ctx->prefix[i] = T;
-            if (T < ctx->transmittance_threshold) {
-                cut = i;
-                break;
+        if (ctx->mode == TraceMode::Gather) {
+            const std::uint64_t key = gather_key(args->geomID, args->primID);
+            if (L.has_after && (t < L.after_t || (t == L.after_t && key <= L.after_key))) continue;
+            int pos;
+            const int k = L.capacity;
+            if (L.count < k) {
+                pos = L.count++;
+            } else {
+                if (!hit_before(t, key, L.hits[k - 1])) continue;
+                L.product /= 1.0f - L.hits[k - 1].alpha;  // evicted
+                pos = k - 1;
             }
+            while (pos > 0 && hit_before(t, key, L.hits[pos - 1])) {
+                L.hits[pos] = L.hits[pos - 1];
+                --pos;
+            }
+            L.hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
+            L.product *= 1.0f - alpha;
+            int cut = -1;
+            if (L.base_transmittance * L.product < L.transmittance_threshold) {
+                // Exact scan for the first index where the transmittance falls below the threshold.
+                float T = L.base_transmittance, P = 1.0f;
+                for (int j = 0; j < L.count; ++j) {
+                    P *= 1.0f - L.hits[j].alpha;
+                    T *= 1.0f - L.hits[j].alpha;
+                    if (T < L.transmittance_threshold) {
+                        cut = j;
+                        L.product = P;
+                        break;
+                    }
+                }
+            }
+            float far = tfar;
+            if (cut >= 0) {
+                L.count = cut + 1;
+                far = L.hits[cut].t;
+            } else if (L.count == k) {
+                far = L.hits[k - 1].t;
+            }
+            if (far < tfar) {
+                tfar = far;
+                // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
+                RTCHitN_geomID(hit, n, i) = RTC_INVALID_GEOMETRY_ID;
+                RTCHitN_instID(hit, n, i, 0) = RTC_INVALID_GEOMETRY_ID;
+            }
+        } else if (ctx->mode == TraceMode::Stochastic) {
+            // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
+            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(args->geomID, args->primID)));
+            if (u >= alpha) continue;
+            tfar = t;
+            const glm::vec3 nrm = set->flat ? g.row2 : -d;
+            RTCHitN_Ng_x(hit, n, i) = nrm.x;
+            RTCHitN_Ng_y(hit, n, i) = nrm.y;
+            RTCHitN_Ng_z(hit, n, i) = nrm.z;
+            RTCHitN_u(hit, n, i) = alpha;
+            RTCHitN_v(hit, n, i) = 0.0f;
+            RTCHitN_primID(hit, n, i) = args->primID;
+            RTCHitN_geomID(hit, n, i) = args->geomID;
+            RTCHitN_instID(hit, n, i, 0) = args->context->instID[0];
         }
-        float far = rh->ray.tfar;
-        if (cut >= 0) {
-            ctx->count = cut + 1;
-            far = ctx->hits[cut].t;
-        } else if (ctx->count == k) {
-            far = ctx->hits[k - 1].t;
-        }
-        if (far < rh->ray.tfar) {
-            rh->ray.tfar = far;
-            // A mesh hit behind the new far end is dropped; if it matters, the next re-trace finds it again.
-            rh->hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        }
-    } else if (ctx->mode == TraceMode::Stochastic) {
-        // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
-        const float u = u32_to_unit_float(hash_combine(ctx->seed, hash_combine(args->geomID, args->primID)));
-        if (u >= alpha) return;
-        rh->ray.tfar = t;
-        rh->hit.u = alpha;
-        rh->hit.v = 0.0f;
-        const glm::vec3 n = set->flat ? g.row2 : -d;
-        rh->hit.Ng_x = n.x;
-        rh->hit.Ng_y = n.y;
-        rh->hit.Ng_z = n.z;
-        rh->hit.primID = args->primID;
-        rh->hit.geomID = args->geomID;
-        rh->hit.instID[0] = args->context->instID[0];
     }
 }
 
@@ -132,6 +146,7 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
 void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (args->N != 1 || !args->valid[0] || ctx->mode != TraceMode::Transmittance) return;
+    LaneState& L = ctx->lanes[0];
     const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
     RTCRay* ray = reinterpret_cast<RTCRay*>(args->ray);
     const GaussianPrimitive& g = set->prims[args->primID];
@@ -142,9 +157,9 @@ void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     if (!(t >= ray->tnear && t <= ray->tfar)) return;
     const float alpha = std::min(kMaxAlpha, g.opacity * std::exp(-0.5f * dist2));
     if (alpha < kMinAlpha) return;
-    ctx->transmittance *= 1.0f - alpha;
-    if (ctx->transmittance <= ctx->transmittance_threshold) {
-        ctx->transmittance = 0.0f;
+    L.transmittance *= 1.0f - alpha;
+    if (L.transmittance <= L.transmittance_threshold) {
+        L.transmittance = 0.0f;
         ray->tfar = -std::numeric_limits<float>::infinity();
     }
 }
@@ -163,8 +178,37 @@ void GaussianSet::prepare(GaussianMode mode) {
     world_to_object_dir = a_inv;
     const bool deg0 = c.sh_degree == 0;
     if (deg0) linear_rgb.resize(3 * n);
+
+    // Morton order (10 bits per axis) of the object-space centres.
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (std::size_t i = 0; i < n; ++i) {
+        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-30f));
+    auto spread = [](std::uint64_t v) {  // 10 bits -> every third bit
+        v &= 0x3ff;
+        v = (v | (v << 16)) & 0x30000ff;
+        v = (v | (v << 8)) & 0x300f00f;
+        v = (v | (v << 4)) & 0x30c30c3;
+        v = (v | (v << 2)) & 0x9249249;
+        return v;
+    };
+    std::vector<std::uint64_t> keyed(n);
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+        const glm::vec3 q = glm::clamp((p - lo) / extent, 0.0f, 1.0f) * 1023.0f;
+        const std::uint64_t code = spread(std::uint64_t(q.x)) | (spread(std::uint64_t(q.y)) << 1) | (spread(std::uint64_t(q.z)) << 2);
+        keyed[i] = (code << 32) | std::uint64_t(i);
+    });
+    tbb::parallel_sort(keyed.begin(), keyed.end());
+    cloud_index.resize(n);
+    for (std::size_t j = 0; j < n; ++j) cloud_index[j] = std::uint32_t(keyed[j] & 0xffffffffu);
+
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const std::size_t i = cloud_index[j];
             const float* q = &c.rotations[4 * i];
             glm::vec4 qq(q[0], q[1], q[2], q[3]);
             const float qn = glm::length(qq);
@@ -181,7 +225,7 @@ void GaussianSet::prepare(GaussianMode mode) {
             std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
             const float smax = std::max(s[order[0]], 1e-30f);
             auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
-            GaussianPrimitive& g = prims[i];
+            GaussianPrimitive& g = prims[j];
             g.center = a * glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]) + b;
             g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
             // row_world = A^-T row_object  (so that row_world . (x_world - m_world) = row_object . (x_obj - m_obj))
@@ -191,7 +235,7 @@ void GaussianSet::prepare(GaussianMode mode) {
             g.pad0 = g.pad1 = g.pad2 = 0.0f;
             if (deg0) {
                 for (int ch = 0; ch < 3; ++ch)
-                    linear_rgb[3 * i + ch] =
+                    linear_rgb[3 * j + ch] =
                         srgb_to_linear(std::max(0.0f, 0.5f + float(kShC0) * c.sh[3 * i + ch]));
             }
         }
@@ -205,7 +249,7 @@ glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     const float len = glm::length(dir);
     dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
     const int k = cloud->coeffs_per_channel();
-    const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(i) * k * 3], dir.x, dir.y, dir.z);
+    const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(cloud_index[i]) * k * 3], dir.x, dir.y, dir.z);
     return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
 

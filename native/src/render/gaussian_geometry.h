@@ -65,13 +65,16 @@ struct GaussianSet {
     Matrix4 object_to_world;
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: view directions into the frame of the SH coefficients
     bool flat = true;
+    // Primitives are stored in Morton order of their centres (primID = position in this order), so that
+    // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines.
     std::vector<GaussianPrimitive> prims;
-    std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per Gaussian
+    std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
+    std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
     std::uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
 
     // Computes prims (and colours) for the mode, in parallel.
     void prepare(GaussianMode mode);
-    // Linear colour of Gaussian i seen from `origin` (world).
+    // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
     // Creates the Embree user geometry (bounds + intersect + occluded callbacks).
     RTCGeometry create_geometry(RTCDevice device);
@@ -95,8 +98,8 @@ struct GatherHit {
 
 constexpr int kGatherCapacity = 64;  // upper bound of RenderSettings::gather_buffer_size
 
-struct TraceContext : RTCIntersectContext {
-    TraceMode mode = TraceMode::Gather;
+// Per-ray state of a traversal.
+struct LaneState {
     // Gather: hits strictly after (after_t, after_key) in (t, key) order, key = geom << 32 | prim.
     float after_t = -1e30f;
     std::uint64_t after_key = 0;
@@ -104,20 +107,28 @@ struct TraceContext : RTCIntersectContext {
     int count = 0;
     int capacity = 48;  // k, <= kGatherCapacity
     GatherHit hits[kGatherCapacity];
-    // prefix[i] = base_transmittance * prod_{j <= i} (1 - hits[j].alpha). Once it drops below the threshold the
-    // true transmittance there is lower still (unseen hits can only lower it), so everything behind hits[i] is
-    // irrelevant: the buffer is cut there and tfar shrinks to hits[i].t. Exact, and it bounds traversal depth.
-    float prefix[kGatherCapacity];
+    // product = prod over the buffer of (1 - alpha), order-independent, kept incrementally. When
+    // base_transmittance * product drops below the threshold, the buffer is scanned for the first i where
+    // base * prod_{j <= i} (1 - alpha_j) does: the true transmittance there is lower still (unseen hits can only
+    // lower it), so everything behind hits[i] is irrelevant: the buffer is cut there and tfar shrinks to hits[i].t.
+    // Exact, and it bounds the traversal depth like an opaque hit would.
+    float product = 1.0f;
     float base_transmittance = 1.0f;
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;
     // Statistics: Gaussian callbacks (bounding-box candidates) during the traversal.
     std::uint64_t candidates = 0;
-    // Transmittance.
+    // Transmittance (shadow rays) and the compositing threshold.
     float transmittance = 1.0f;
     float transmittance_threshold = 0.0f;
+};
 
-    TraceContext() { rtcInitIntersectContext(this); }
+// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data):
+// lane i of a ray packet uses lanes[i]; single rays use lanes[0].
+struct TraceContext : RTCIntersectContext {
+    TraceMode mode = TraceMode::Gather;
+    LaneState* lanes;
+    TraceContext(LaneState* lane_array, TraceMode m) : mode(m), lanes(lane_array) { rtcInitIntersectContext(this); }
 };
 
 inline std::uint64_t gather_key(std::uint32_t geom, std::uint32_t prim) { return (std::uint64_t(geom) << 32) | prim; }

@@ -95,13 +95,13 @@ public:
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     }
 
-    void record_mesh(Segment& seg, const RTCRayHit& rh) const {
+    void record_mesh(Segment& seg, float t, unsigned geom, unsigned inst, unsigned prim, float u, float v) const {
         seg.mesh = true;
-        seg.top_geom = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
-        seg.prim = rh.hit.primID;
-        seg.t = rh.ray.tfar;
-        seg.u = rh.hit.u;
-        seg.v = rh.hit.v;
+        seg.top_geom = inst != RTC_INVALID_GEOMETRY_ID ? inst : geom;
+        seg.prim = prim;
+        seg.t = t;
+        seg.u = u;
+        seg.v = v;
     }
 
     // Composites one Gaussian onto the segment (front to back).
@@ -121,77 +121,150 @@ public:
         ++c.gaussian_hits;
     }
 
-    Segment trace_sorted(const Ray& ray, Sampler& rng, Counters& c) const {
-        Segment seg;
-        TraceContext ctx;
-        ctx.mode = TraceMode::Gather;
-        ctx.transmittance_threshold = st_.transmittance_threshold;
-        ctx.capacity = st_.gather_buffer_size;
-        float t0 = ray.tmin;
+    void init_lane(LaneState& L) const {
+        L.capacity = st_.gather_buffer_size;
+        L.transmittance_threshold = st_.transmittance_threshold;
+    }
+
+    // Consumes one sorted gathering pass of a ray: composites the buffer; true when the segment is complete,
+    // false when the buffer overflowed and the ray must be re-traced from its last hit.
+    bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
+                        unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
+        ++c.traced;
+        c.candidates += L.candidates;
+        L.candidates = 0;
+        for (int i = 0; i < L.count; ++i) {
+            const GatherHit& h = L.hits[i];
+            if (h.t > tfar) break;  // behind the mesh hit found later in the traversal
+            composite(seg, ray, h.geom, h.prim, h.t, h.alpha, rng, c);
+            if (seg.transmittance < st_.transmittance_threshold) {
+                seg.terminated = true;
+                return true;
+            }
+        }
+        if (geom != RTC_INVALID_GEOMETRY_ID) {
+            record_mesh(seg, tfar, geom, inst, prim, u, v);
+            if (seg.transmittance > 0.5f) seg.depth = seg.t;
+            return true;
+        }
+        // Every Gaussian of the segment was gathered unless the buffer overflowed.
+        if (L.count < L.capacity) return true;
+        float T = L.base_transmittance;
+        for (int i = 0; i < L.count; ++i) T *= 1.0f - L.hits[i].alpha;
+        if (T < st_.transmittance_threshold) return true;  // the buffer was cut where it saturated
+        const GatherHit& last = L.hits[L.capacity - 1];
+        L.after_t = last.t;
+        L.after_key = gather_key(last.geom, last.prim);
+        L.has_after = true;
+        return false;
+    }
+
+    // Sorted gathering of a ray with single-ray queries, from the state left by earlier passes.
+    void trace_sorted_from(Segment& seg, LaneState& L, const Ray& ray, Sampler& rng, Counters& c) const {
+        TraceContext ctx(&L, TraceMode::Gather);
         for (;;) {
             RTCRayHit rh;
-            init_rayhit(rh, ray, t0);
-            ctx.count = 0;
-            ctx.base_transmittance = seg.transmittance;
+            init_rayhit(rh, ray, L.has_after ? L.after_t : ray.tmin);
+            L.count = 0;
+            L.product = 1.0f;
+            L.base_transmittance = seg.transmittance;
             rtcIntersect1(s_.scene, &ctx, &rh);
-            ++c.traced;
-            c.candidates += ctx.candidates;
-            ctx.candidates = 0;
-            const float seg_end = rh.ray.tfar;
-            for (int i = 0; i < ctx.count; ++i) {
-                const GatherHit& h = ctx.hits[i];
-                if (h.t > seg_end) break;  // behind the mesh hit found later in the traversal
-                composite(seg, ray, h.geom, h.prim, h.t, h.alpha, rng, c);
-                if (seg.transmittance < st_.transmittance_threshold) {
-                    seg.terminated = true;
-                    return seg;
-                }
-            }
-            if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-                record_mesh(seg, rh);
-                if (seg.transmittance > 0.5f) seg.depth = seg.t;
-                return seg;
-            }
-            // Every Gaussian of the segment was gathered unless the buffer overflowed.
-            const bool saturated = ctx.count > 0 && ctx.prefix[ctx.count - 1] < st_.transmittance_threshold;
-            if (ctx.count < ctx.capacity || saturated) return seg;
-            const GatherHit& last = ctx.hits[ctx.capacity - 1];
-            t0 = last.t;
-            ctx.after_t = last.t;
-            ctx.after_key = gather_key(last.geom, last.prim);
-            ctx.has_after = true;
+            if (consume_gather(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
+                               rh.hit.v, rng, c))
+                return;
         }
+    }
+
+    Segment trace_sorted(const Ray& ray, Sampler& rng, Counters& c) const {
+        Segment seg;
+        LaneState L;
+        init_lane(L);
+        trace_sorted_from(seg, L, ray, rng, c);
+        return seg;
+    }
+
+    void consume_stochastic(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
+                            unsigned prim, float u, float v, const glm::vec3& ng, Sampler& rng, Counters& c) const {
+        ++c.traced;
+        c.candidates += L.candidates;
+        L.candidates = 0;
+        if (geom == RTC_INVALID_GEOMETRY_ID) return;
+        const TopGeometry& tg = s_.top[inst != RTC_INVALID_GEOMETRY_ID ? inst : geom];
+        if (tg.kind == TopGeometry::Gaussians && inst == RTC_INVALID_GEOMETRY_ID) {
+            // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
+            const GaussianSet& set = *s_.gaussians[tg.index];
+            glm::vec3 color = set.color(prim, ray.o);
+            if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[prim].center, rng, c);
+            seg.radiance = color;
+            seg.transmittance = 0.0f;
+            seg.terminated = true;
+            seg.depth = tfar;
+            const glm::vec3 n = glm::normalize(ng);
+            seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+            ++c.gaussian_hits;
+            return;
+        }
+        record_mesh(seg, tfar, geom, inst, prim, u, v);
+        seg.depth = seg.t;
     }
 
     Segment trace_stochastic(const Ray& ray, Sampler& rng, Counters& c) const {
         Segment seg;
-        TraceContext ctx;
-        ctx.mode = TraceMode::Stochastic;
-        ctx.seed = rng.next_u32();
+        LaneState L;
+        L.seed = rng.next_u32();
+        TraceContext ctx(&L, TraceMode::Stochastic);
         RTCRayHit rh;
         init_rayhit(rh, ray, ray.tmin);
         rtcIntersect1(s_.scene, &ctx, &rh);
-        ++c.traced;
-        c.candidates += ctx.candidates;
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return seg;
-        const TopGeometry& tg = s_.top[rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID];
-        if (tg.kind == TopGeometry::Gaussians && rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID) {
-            // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
-            const GaussianSet& set = *s_.gaussians[tg.index];
-            glm::vec3 color = set.color(rh.hit.primID, ray.o);
-            if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[rh.hit.primID].center, rng, c);
-            seg.radiance = color;
-            seg.transmittance = 0.0f;
-            seg.terminated = true;
-            seg.depth = rh.ray.tfar;
-            glm::vec3 n = glm::normalize(glm::vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-            seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
-            ++c.gaussian_hits;
-            return seg;
-        }
-        record_mesh(seg, rh);
-        seg.depth = seg.t;
+        consume_stochastic(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u, rh.hit.v,
+                           glm::vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rng, c);
         return seg;
+    }
+
+    // First segments of up to 16 coherent camera rays with one packet query (rtcIntersect16): a Gaussian's data
+    // is fetched once for every ray of the packet that reaches it. Rays whose buffer overflows continue alone.
+    // Random numbers are drawn in the same order as on the single-ray path, so the image does not change.
+    void trace_packet(const Ray* rays, const bool* active, Sampler* rngs, Segment* segs, Counters& c) const {
+        LaneState lanes[16];
+        RTCRayHit16 rh;
+        alignas(64) int valid[16];
+        const bool sorted = st_.compositing == Compositing::Sorted;
+        for (int l = 0; l < 16; ++l) {
+            valid[l] = active[l] ? -1 : 0;
+            segs[l] = Segment{};
+            const Ray& r = rays[l];
+            init_lane(lanes[l]);
+            if (active[l] && !sorted) lanes[l].seed = rngs[l].next_u32();
+            rh.ray.org_x[l] = r.o.x;
+            rh.ray.org_y[l] = r.o.y;
+            rh.ray.org_z[l] = r.o.z;
+            rh.ray.dir_x[l] = r.d.x;
+            rh.ray.dir_y[l] = r.d.y;
+            rh.ray.dir_z[l] = r.d.z;
+            rh.ray.tnear[l] = r.tmin;
+            rh.ray.tfar[l] = r.tmax;
+            rh.ray.time[l] = 0.0f;
+            rh.ray.mask[l] = 0xffffffffu;
+            rh.ray.id[l] = unsigned(l);
+            rh.ray.flags[l] = 0;
+            rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+        }
+        TraceContext ctx(lanes, sorted ? TraceMode::Gather : TraceMode::Stochastic);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        rtcIntersect16(valid, s_.scene, &ctx, &rh);
+        for (int l = 0; l < 16; ++l) {
+            if (!active[l]) continue;
+            if (sorted) {
+                if (!consume_gather(segs[l], lanes[l], rays[l], rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.instID[0][l],
+                                    rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l], c))
+                    trace_sorted_from(segs[l], lanes[l], rays[l], rngs[l], c);
+            } else {
+                consume_stochastic(segs[l], lanes[l], rays[l], rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.instID[0][l],
+                                   rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l],
+                                   glm::vec3(rh.hit.Ng_x[l], rh.hit.Ng_y[l], rh.hit.Ng_z[l]), rngs[l], c);
+            }
+        }
     }
 
     Segment trace(const Ray& ray, Sampler& rng, Counters& c) const {
@@ -200,9 +273,9 @@ public:
 
     // Visibility of a light sample: Gaussian transmittance x mesh occlusion (meshes_only: meshes alone).
     float shadow(const glm::vec3& o, const glm::vec3& d, float dist, bool meshes_only, Counters& c) const {
-        TraceContext ctx;
-        ctx.mode = meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance;
-        ctx.transmittance_threshold = st_.transmittance_threshold;
+        LaneState L;
+        L.transmittance_threshold = st_.transmittance_threshold;
+        TraceContext ctx(&L, meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance);
         RTCRay ray;
         ray.org_x = o.x;
         ray.org_y = o.y;
@@ -219,7 +292,7 @@ public:
         rtcOccluded1(s_.scene, &ctx, &ray);
         ++c.traced;
         if (ray.tfar == -kInf) return 0.0f;
-        return ctx.transmittance;
+        return L.transmittance;
     }
 
     // Fraction of the lights' unshadowed irradiance that reaches a Gaussian centre past the meshes.
@@ -266,7 +339,8 @@ public:
     }
 
     // One path from a camera ray. Returns the radiance; writes coverage, depth and normal of the primary segment.
-    glm::vec3 path(Ray ray, Sampler& rng, Counters& c, float& alpha, float& depth, glm::vec3& normal) const {
+    glm::vec3 path(Ray ray, Sampler& rng, Counters& c, float& alpha, float& depth, glm::vec3& normal,
+                   const Segment* first = nullptr) const {
         glm::vec3 radiance(0.0f), beta(1.0f);
         bool camera_segment = true;
         alpha = 0.0f;
@@ -275,7 +349,8 @@ public:
         int bounce = 0, passes = 0;
         const Material default_material;
         for (;;) {
-            Segment seg = trace(ray, rng, c);
+            Segment seg = first ? *first : trace(ray, rng, c);
+            first = nullptr;
             radiance += beta * seg.radiance;
             if (camera_segment) {
                 if (depth == kInf && seg.depth < kInf) {
@@ -400,33 +475,56 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
             std::vector<float> coverage(accum.size(), 0.0f);
             bool stop = false;
             // Samples outermost so that consecutive primary rays are coherent (neighbouring pixels).
+            // Camera rays go to Embree as 4 x 4 packets (neighbouring pixels, coherent).
             for (int sample = 0; sample < settings.samples && !stop; ++sample) {
-                for (int y = y0; y < y1 && !stop; ++y) {
+                for (int by = y0; by < y1 && !stop; by += 4) {
                     if (is_cancelled()) {
                         stop = true;
                         break;
                     }
-                    for (int x = x0; x < x1; ++x) {
-                        const std::uint64_t pixel = std::uint64_t(y) * w + x;
-                        Sampler rng(settings.seed, pixel, std::uint32_t(sample));
-                        float jx = 0.5f, jy = 0.5f;
-                        if (settings.jitter) {
-                            jx = rng.next();
-                            jy = rng.next();
+                    for (int bx = x0; bx < x1; bx += 4) {
+                        Ray rays[16];
+                        bool active[16];
+                        Sampler rngs[16] = {Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
+                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
+                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
+                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0)};
+                        Segment segs[16];
+                        bool any = false;
+                        for (int l = 0; l < 16; ++l) {
+                            const int x = bx + (l & 3), y = by + (l >> 2);
+                            active[l] = false;
+                            rays[l] = Ray{glm::vec3(0.0f), glm::vec3(0, 0, -1), 0.0f, 0.0f};
+                            if (x >= x1 || y >= y1) continue;
+                            const std::uint64_t pixel = std::uint64_t(y) * w + x;
+                            rngs[l] = Sampler(settings.seed, pixel, std::uint32_t(sample));
+                            float jx = 0.5f, jy = 0.5f;
+                            if (settings.jitter) {
+                                jx = rngs[l].next();
+                                jy = rngs[l].next();
+                            }
+                            const CameraRay cr = generate_camera_ray(camera, w, h, x + jx, y + jy);
+                            if (!cr.valid) continue;
+                            rays[l] = Ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
+                                          glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
+                            active[l] = any = true;
                         }
-                        const CameraRay cr = generate_camera_ray(camera, w, h, x + jx, y + jy);
-                        if (!cr.valid) continue;
-                        const Ray ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
-                                      glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
-                        float a, depth;
-                        glm::vec3 n;
-                        const glm::vec3 l = integrator.path(ray, rng, counters, a, depth, n);
-                        const std::size_t li = std::size_t(y - y0) * tw + (x - x0);
-                        accum[li] += glm::vec4(l, 0.0f);
-                        coverage[li] += a;
-                        if (sample == 0) {
-                            film.depth[pixel] = depth;
-                            for (int k = 0; k < 3; ++k) film.normal[3 * pixel + k] = n[k];
+                        if (!any) continue;
+                        integrator.trace_packet(rays, active, rngs, segs, counters);
+                        for (int l = 0; l < 16; ++l) {
+                            if (!active[l]) continue;
+                            const int x = bx + (l & 3), y = by + (l >> 2);
+                            const std::uint64_t pixel = std::uint64_t(y) * w + x;
+                            float a, depth;
+                            glm::vec3 n;
+                            const glm::vec3 lo = integrator.path(rays[l], rngs[l], counters, a, depth, n, &segs[l]);
+                            const std::size_t li = std::size_t(y - y0) * tw + (x - x0);
+                            accum[li] += glm::vec4(lo, 0.0f);
+                            coverage[li] += a;
+                            if (sample == 0) {
+                                film.depth[pixel] = depth;
+                                for (int k = 0; k < 3; ++k) film.normal[3 * pixel + k] = n[k];
+                            }
                         }
                     }
                 }
