@@ -277,6 +277,33 @@ class RenderEngine(unittest.TestCase):
             bpy.ops.render.render()
         self.assertIn("camera", str(raised.exception).lower())
 
+    def test_viewport_camera_from_view_matrices_matches_the_scene_camera(self):
+        """In camera view the 3D view's matrices are the camera's; the viewport must then trace the same rays
+        (perspective with lens shift, and orthographic)."""
+        from types import SimpleNamespace
+
+        from raysplats.engine import sync, viewport
+        core = st.native()
+        for ortho in (False, True):
+            scene = new_scene(width=80, height=60, samples=1)
+            scene.world.color = (0.1, 0.1, 0.1)
+            add_donut((0, 0, 0))
+            camera = add_camera((0.05, -0.6, 0.1), (0, 1, -0.1), ortho_scale=0.4 if ortho else None, lens=40.0)
+            camera.data.shift_x, camera.data.shift_y = 0.1, -0.05
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            window = camera.calc_matrix_camera(depsgraph, x=80, y=60)
+            context = SimpleNamespace(
+                region_data=SimpleNamespace(view_matrix=camera.matrix_world.inverted(), window_matrix=window,
+                                            is_perspective=not ortho),
+                space_data=SimpleNamespace(clip_start=camera.data.clip_start, clip_end=camera.data.clip_end))
+            render_scene, _ = sync.build_render_scene(depsgraph)
+            settings = sync.render_settings(scene, 80, 60, 1)
+            settings["compositing"] = "STOCHASTIC"
+            images = [core.RenderJob(render_scene, cam, settings).result()["rgba"]
+                      for cam in (sync.camera_settings(scene, camera, 80, 60), viewport.view_camera(context, 80, 60))]
+            self.assertGreater(np.abs(images[0] - images[0][0, 0]).max(), 0.1, "the splats must be in view")
+            np.testing.assert_allclose(images[1], images[0], atol=2e-3, err_msg="ortho" if ortho else "perspective")
+
     def test_native_render_job_cancels_promptly(self):
         scene = new_scene(width=400, height=300, samples=4096)
         add_donut((0, 0, 0))

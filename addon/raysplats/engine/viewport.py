@@ -19,14 +19,21 @@ class ViewportState:
         self.texture = None
 
 
-def _view_camera(context, width, height):
+def view_camera(context, width, height):
     """A native camera matching the 3D view (perspective or orthographic), from its matrices."""
     region_3d = context.region_data
     view_to_world = np.array(region_3d.view_matrix.inverted(), dtype=np.float32)
     projection = np.array(region_3d.window_matrix, dtype=np.float64)
+    # OpenGL frustum: (r + l) / (r - l) = 2 shift_x and (t + b) / (t - b) = 2 shift_y · width / height, with
+    # shifts in units of the (horizontally fitted) image width. A perspective matrix has them in column 2,
+    # an orthographic one negated in column 3.
+    if region_3d.is_perspective:
+        off_x, off_y = projection[0, 2], projection[1, 2]
+    else:
+        off_x, off_y = -projection[0, 3], -projection[1, 3]
     camera = {"matrix": view_to_world, "sensor_fit": "HORIZONTAL", "sensor_width": 36.0,
               "clip_start": float(context.space_data.clip_start), "clip_end": float(context.space_data.clip_end),
-              "shift_x": -projection[0, 2] / 2.0, "shift_y": -projection[1, 2] / 2.0 * height / width}
+              "shift_x": off_x / 2.0, "shift_y": off_y / 2.0 * height / width}
     if region_3d.is_perspective:
         # projection[0, 0] = 2 lens / sensor_width for a horizontally fitted sensor.
         camera.update(type="PERSP", lens=float(projection[0, 0] * 36.0 / 2.0))
@@ -57,7 +64,7 @@ def view_draw(engine, context, depsgraph):
         state.render_scene.build(scene.raysplats.gaussian_mode)
         state.dirty = False
         state.samples = 0
-    camera = _view_camera(context, width, height)
+    camera = view_camera(context, width, height)
     key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)), camera.get("lens"),
            camera.get("ortho_scale"))
     if key != state.key:
