@@ -165,8 +165,9 @@ def build_render_scene(depsgraph, warn=None):
                                            cloud["opacities"], cloud["sh"])
                 stats.splats += len(cloud["opacities"])
         elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
-            key = obj.data.name_full if obj.type == "MESH" and not instance.is_instance else None
-            arrays = mesh_cache.get((key, obj.name_full)) if key else None
+            # Instances of one mesh (collection, particle, Geometry Nodes instances) share its arrays.
+            key = obj.data.as_pointer() if obj.type == "MESH" else None
+            arrays = mesh_cache.get(key) if key else None
             if arrays is None:
                 mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
                 try:
@@ -175,7 +176,7 @@ def build_render_scene(depsgraph, warn=None):
                     if obj.type != "MESH":
                         obj.to_mesh_clear()
                 if key:
-                    mesh_cache[(key, obj.name_full)] = arrays
+                    mesh_cache[key] = arrays
             vertices, triangles, slots = arrays
             if not len(triangles):
                 continue
