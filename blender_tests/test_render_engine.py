@@ -304,6 +304,26 @@ class RenderEngine(unittest.TestCase):
             self.assertGreater(np.abs(images[0] - images[0][0, 0]).max(), 0.1, "the splats must be in view")
             np.testing.assert_allclose(images[1], images[0], atol=2e-3, err_msg="ortho" if ortho else "perspective")
 
+    def test_instances_and_modifiers_reach_the_renderer(self):
+        from raysplats.engine import sync
+        new_scene()
+        bpy.ops.mesh.primitive_cube_add(size=0.2)
+        cube = bpy.context.object
+        cube.modifiers.new("Subdivision", "SUBSURF").levels = 1  # 6 faces -> 24 quads -> 48 triangles
+        collection = bpy.data.collections.new("Instanced")
+        collection.objects.link(cube)
+        bpy.context.scene.collection.children.link(collection)
+        for x in (1.0, 2.0):
+            empty = bpy.data.objects.new(f"Instance {x}", None)
+            empty.instance_type, empty.instance_collection = "COLLECTION", collection
+            empty.location = (x, 0.0, 0.0)
+            bpy.context.scene.collection.objects.link(empty)
+        splats = add_donut((0, 0, 0))
+        splats.modifiers.new("Mirror", "MIRROR").use_mirror_merge = False
+        _, stats = sync.build_render_scene(bpy.context.evaluated_depsgraph_get())
+        self.assertEqual(stats.triangles, 3 * 48)
+        self.assertEqual(stats.splats, 2 * len(splats.data.polygons))
+
     def test_native_render_job_cancels_promptly(self):
         scene = new_scene(width=400, height=300, samples=4096)
         add_donut((0, 0, 0))
