@@ -167,11 +167,10 @@ TEST(RenderLighting, OpaqueSquareCastsShadowOfRightSizeAndPlace) {
 }
 
 // Two splat sheets (opacities 0.6 and 0.3, scale 2) between a vertical sun and the plane transmit
-// (1 - 0.6 G)(1 - 0.3 G), G = exp(-r^2 / 8). Both Gaussian modes. Relative tolerance 1e-4. The splats are
-// black: they carry baked radiance, which the BSDF ray leaving the plane would otherwise collect.
+// (1 - 0.6 G)(1 - 0.3 G), G = exp(-r^2 / 8). Both Gaussian modes. Relative tolerance 1e-4.
 TEST(RenderLighting, SplatSheetTransmitsPredictedFraction) {
     GaussianCloud cloud;
-    const float q[4] = {1, 0, 0, 0}, s[3] = {2.0f, 2.0f, 0.001f}, rgb[3] = {0, 0, 0};
+    const float q[4] = {1, 0, 0, 0}, s[3] = {2.0f, 2.0f, 0.001f}, rgb[3] = {1, 1, 1};
     const float p1[3] = {0, 0, 1.0f}, p2[3] = {0, 0, 1.5f};
     add_gaussian(cloud, p1, q, s, 0.6f, rgb);
     add_gaussian(cloud, p2, q, s, 0.3f, rgb);

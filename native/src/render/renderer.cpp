@@ -382,7 +382,7 @@ public:
 
     // One path from a camera ray. Returns the radiance; writes coverage, depth and normal of the primary segment.
     // Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
-    // last vertex still collects what it sees (world, area lights, emission, splats) without further shading
+    // last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
     // (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
     glm::vec3 path(Ray ray, Sampler& rng, Counters& c, float& alpha, float& depth, glm::vec3& normal,
                    const Segment* first = nullptr) const {
@@ -399,7 +399,9 @@ public:
         for (;;) {
             Segment seg = trace_with_lights(ray, first, mis_pdf, beta, radiance, rng, c);
             first = nullptr;
-            radiance += beta * seg.radiance;
+            // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
+            // (the ray still takes their transmittance).
+            if (!last) radiance += beta * seg.radiance;
             if (camera_segment) {
                 if (depth == kInf && seg.depth < kInf) {
                     depth = seg.depth;
