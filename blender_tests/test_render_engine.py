@@ -137,6 +137,11 @@ class RenderEngine(unittest.TestCase):
         self.assertFalse(np.isnan(ground).any())
 
         l0_expected = albedo * irradiance * math.cos(theta) / math.pi
+        if bpy.app.version < (4, 0, 0):
+            # Principled v1's diffuse (Cycles' principled diffuse, roughness 1, seen along the normal):
+            # (1 - FL / 2) + RR FL, FL = (1 - cos theta)^5, RR = roughness (1 + cos theta).
+            fl = (1.0 - math.cos(theta)) ** 5
+            l0_expected *= (1.0 - 0.5 * fl) + 1.0 * (1.0 + math.cos(theta)) * fl
         luminance = ground[..., :3].mean(axis=2)
         lit = luminance[:, :40][~splat_mask[:, :40]]  # the image's left edge, far from the shadow
         self.assertAlmostEqual(float(np.median(lit)) / l0_expected, 1.0, delta=0.02)

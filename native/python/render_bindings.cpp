@@ -72,13 +72,16 @@ struct RenderScene {
 
     std::uint32_t add_material(const py::sequence& base_color, float metallic, float roughness, float specular,
                                float transmission, float ior, const py::sequence& emission_color,
-                               float emission_strength, float alpha) {
+                               float emission_strength, float alpha, const std::string& diffuse_model) {
         raysplats::Material m;
         m.base_color = rgb_from(base_color, "base_color");
         m.metallic = metallic, m.roughness = roughness, m.specular = specular;
         m.transmission = transmission, m.ior = ior;
         m.emission_color = rgb_from(emission_color, "emission_color");
         m.emission_strength = emission_strength, m.alpha = alpha;
+        m.diffuse_model = enum_from<raysplats::DiffuseModel>(
+            diffuse_model, {{"LAMBERT", raysplats::DiffuseModel::Lambert}, {"PRINCIPLED", raysplats::DiffuseModel::Principled}},
+            "diffuse model");
         return scene.add_material(m);
     }
 
@@ -213,6 +216,8 @@ raysplats::RenderSettings settings_from(const py::dict& s) {
     if (s.contains("gaussian_mode")) r.gaussian_mode = gaussian_mode_from(s["gaussian_mode"].cast<std::string>());
     if (s.contains("meshes_shadow_gaussians")) r.meshes_shadow_gaussians = s["meshes_shadow_gaussians"].cast<bool>();
     if (s.contains("transparent_background")) r.transparent_background = s["transparent_background"].cast<bool>();
+    if (s.contains("caustics_reflective")) r.caustics_reflective = s["caustics_reflective"].cast<bool>();
+    if (s.contains("caustics_refractive")) r.caustics_refractive = s["caustics_refractive"].cast<bool>();
     r.tile_size = get_int("tile_size", r.tile_size);
     r.validate();
     return r;
@@ -299,7 +304,7 @@ void register_render_bindings(py::module_& m) {
         .def("add_material", &RenderScene::add_material, "base_color"_a = std::vector<float>{0.8f, 0.8f, 0.8f},
              "metallic"_a = 0.0f, "roughness"_a = 0.5f, "specular"_a = 0.5f, "transmission"_a = 0.0f,
              "ior"_a = 1.45f, "emission_color"_a = std::vector<float>{0, 0, 0}, "emission_strength"_a = 1.0f,
-             "alpha"_a = 1.0f)
+             "alpha"_a = 1.0f, "diffuse_model"_a = "LAMBERT")
         .def("add_mesh", &RenderScene::add_mesh, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
              "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none())
         .def("add_gaussians", &RenderScene::add_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,

@@ -13,6 +13,13 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                                   description="Samples the viewport accumulates before it stops refining")
     max_bounces: IntProperty(name="Max Bounces", default=4, min=0, max=1024,
                              description="Reflections and refractions followed per path (0: direct light only)")
+    caustics_reflective: BoolProperty(
+        name="Reflective Caustics", default=True,
+        description="Let diffuse paths continue through glossy and mirror reflections (as Cycles' Caustics > "
+                    "Reflective; off removes the noise of reflective caustics)")
+    caustics_refractive: BoolProperty(
+        name="Refractive Caustics", default=True,
+        description="Let diffuse paths continue through refraction (as Cycles' Caustics > Refractive)")
     compositing: EnumProperty(
         name="Compositing", default="SORTED",
         items=(("SORTED", "Sorted", "Gaussians composited in exact depth order (the reference)"),

@@ -1,9 +1,14 @@
 # Depsgraph -> native RenderScene: meshes (modifiers applied, instances included), Gaussian objects recovered
 # from their evaluated meshes, Principled materials, lights in Blender units, the world and the camera.
 
+import bpy
 import numpy as np
 
 from .. import gaussian_mesh, native
+
+# Cycles' Principled BSDF v1 (Blender 2.8-3.x) has the principled (Disney) diffuse with roughness-dependent
+# retro-reflection; v2 (Blender 4.x) a Lambertian diffuse.
+PRINCIPLED_DIFFUSE = "PRINCIPLED" if bpy.app.version < (4, 0, 0) else "LAMBERT"
 
 
 def _input(node, *names):
@@ -72,6 +77,7 @@ class MaterialTable:
                 "emission_color": _value(node, (0.0, 0.0, 0.0), "Emission Color", "Emission"),
                 "emission_strength": _value(node, 1.0, "Emission Strength"),
                 "alpha": _value(node, 1.0, "Alpha"),
+                "diffuse_model": PRINCIPLED_DIFFUSE,
             }
         if kind == "ShaderNodeBsdfDiffuse":
             return {"base_color": _value(node, (0.8, 0.8, 0.8), "Color"), "roughness": 1.0, "specular": 0.0}
@@ -228,6 +234,7 @@ def render_settings(scene, width, height, samples, seed_offset=0):
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
         "meshes_shadow_gaussians": settings.meshes_shadow_gaussians,
+        "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,
         "transparent_background": bool(scene.render.film_transparent),
     }
 

@@ -54,6 +54,9 @@ class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
     def draw(self, context):
         self.layout.use_property_split = True
         self.layout.prop(context.scene.raysplats, "max_bounces")
+        column = self.layout.column(heading="Caustics", align=True)
+        column.prop(context.scene.raysplats, "caustics_reflective", text="Reflective")
+        column.prop(context.scene.raysplats, "caustics_refractive", text="Refractive")
 
 
 class RAYSPLATS_CAMERA_PT_panorama(bpy.types.Panel):

@@ -54,6 +54,7 @@ bool sample_light(const Light& l, const glm::vec3& p, Sampler& rng, LightSample&
                 }
             }
             out.value = color * (att / (4.0f * kPi * d2));
+            out.pdf = 0.0f;
             return true;
         }
         case LightType::Sun: {
@@ -72,6 +73,7 @@ bool sample_light(const Light& l, const glm::vec3& p, Sampler& rng, LightSample&
             out.wi = w;
             out.distance = std::numeric_limits<float>::infinity();
             out.value = color;
+            out.pdf = 0.0f;  // the sun is not hit by rays; its samples need no MIS weight
             return true;
         }
         case LightType::AreaRectangle:
@@ -99,10 +101,46 @@ bool sample_light(const Light& l, const glm::vec3& p, Sampler& rng, LightSample&
             if (cos_l <= 0.0f) return false;
             // Cycles: radiance L = P / (4 A); uniform area sampling: value = L cos_l A / d^2.
             out.value = color * (0.25f / area) * (cos_l * area / d2);
+            out.pdf = d2 / (cos_l * area);
             return true;
         }
     }
     return false;
+}
+
+bool intersect_light(const Light& l, const glm::vec3& o, const glm::vec3& d, float tmax, LightHit& out) {
+    if (l.type != LightType::AreaRectangle && l.type != LightType::AreaDisk) return false;
+    const glm::mat3 a = linear_part(l.light_to_world);
+    const glm::vec3 pos = translation_part(l.light_to_world);
+    const glm::vec3 ax = a * glm::vec3(l.size_x, 0, 0);
+    const glm::vec3 ay = a * glm::vec3(0, l.type == LightType::AreaDisk ? l.size_x : l.size_y, 0);
+    const glm::vec3 nrm = glm::cross(ax, ay);
+    const float area_par = glm::length(nrm);
+    if (!(area_par > 0.0f)) return false;
+    const glm::vec3 axis = glm::normalize(a * glm::vec3(0, 0, -1));  // emission direction
+    const float cos_l = -glm::dot(d, axis);
+    if (cos_l <= 0.0f) return false;  // back side: emits nothing towards o
+    const glm::vec3 un = nrm / area_par;
+    const float denom = glm::dot(d, un);
+    if (std::abs(denom) < 1e-12f) return false;
+    const float t = glm::dot(pos - o, un) / denom;
+    if (!(t > 0.0f) || !(t < tmax)) return false;
+    // Coordinates of the hit in the (ax, ay) parallelogram frame, in [-1/2, 1/2].
+    const glm::vec3 q = o + t * d - pos;
+    const glm::vec3 ex = glm::cross(ay, un) / area_par, ey = glm::cross(un, ax) / area_par;  // dual basis
+    const float sx = glm::dot(q, ex), sy = glm::dot(q, ey);
+    float area;
+    if (l.type == LightType::AreaRectangle) {
+        if (std::abs(sx) > 0.5f || std::abs(sy) > 0.5f) return false;
+        area = area_par;
+    } else {
+        if (sx * sx + sy * sy > 0.25f) return false;
+        area = 0.25f * kPi * area_par;
+    }
+    out.t = t;
+    out.radiance = glm::vec3(l.color[0], l.color[1], l.color[2]) * (l.power * 0.25f / area);
+    out.pdf = t * t / (cos_l * area);
+    return true;
 }
 
 }  // namespace raysplats

@@ -23,12 +23,6 @@ float smith_g1(float cos_v, float a) {
     return 2.0f / (1.0f + std::sqrt(1.0f + a * a * tan2));
 }
 
-glm::vec3 schlick(const glm::vec3& f0, float cos_theta) {
-    const float m = std::clamp(1.0f - cos_theta, 0.0f, 1.0f);
-    const float m5 = m * m * m * m * m;
-    return f0 + (glm::vec3(1.0f) - f0) * m5;
-}
-
 // GGX normal distribution sampled proportionally to D(h) cos(theta_h).
 glm::vec3 sample_ggx_normal(const glm::vec3& n, float a, float u1, float u2) {
     const float phi = 2.0f * kPi * u1;
@@ -100,87 +94,122 @@ float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
     return 0.5f * (rs * rs + rp * rp);
 }
 
-Bsdf::Bsdf(const Material& m, const glm::vec3& base_color, const glm::vec3& shading_normal, bool entering_)
-    : n(shading_normal), base(base_color), ior(m.ior), entering(entering_) {
+float principled_diffuse_factor(float roughness, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
+    // Cycles 3.x bsdf_principled_diffuse_compute_brdf with PRINCIPLED_DIFFUSE_FULL.
+    auto schlick_weight = [](float c) {
+        const float m = std::clamp(1.0f - c, 0.0f, 1.0f);
+        return m * m * m * m * m;
+    };
+    const float fv = schlick_weight(glm::dot(n, wo)), fl = schlick_weight(glm::dot(n, wi));
+    const float rr = roughness * (glm::dot(wi, wo) + 1.0f);  // 2 roughness cos^2(theta_d)
+    return (1.0f - 0.5f * fv) * (1.0f - 0.5f * fl) + rr * (fl + fv + fl * fv * (rr - 1.0f));
+}
+
+Bsdf::Bsdf(const Material& m, const glm::vec3& base_color, const glm::vec3& shading_normal, bool entering_,
+           LobeFilter filter)
+    : n(shading_normal), base(base_color), roughness(m.roughness), ior(m.ior), entering(entering_) {
     alpha = std::max(m.roughness * m.roughness, 1e-4f);
     spec_delta = m.roughness < kDeltaRoughness;
-    w_metal = m.metallic;
-    w_glass = (1.0f - m.metallic) * m.transmission;
+    principled_diffuse = m.diffuse_model == DiffuseModel::Principled;
+    // Cycles 3.x principled weights: diffuse (1 - metallic)(1 - transmission), glass (1 - metallic) transmission,
+    // specular layer 1 - glass (present when specular or metallic is non-zero).
+    const float w_glass = (1.0f - m.metallic) * m.transmission;
     w_diffuse = (1.0f - m.metallic) * (1.0f - m.transmission);
-    w_dielectric_spec = m.specular > 0.0f ? w_diffuse : 0.0f;
-    f0_dielectric = 0.08f * m.specular;
-    const float p_spec = w_metal + 0.25f * w_dielectric_spec;
-    const float sum = w_diffuse + p_spec + w_glass;
+    w_spec = (m.specular > 0.0f || m.metallic > 0.0f) && filter.reflective ? 1.0f - w_glass : 0.0f;
+    w_glass_reflect = filter.reflective ? w_glass : 0.0f;
+    w_glass_refract = filter.refractive ? w_glass : 0.0f;
+    cspec0 = glm::mix(glm::vec3(0.08f * m.specular), base, m.metallic);
+    // Cycles: ior = 2 / (1 - sqrt(0.08 specular)) - 1, F0 = fresnel_dielectric_cos(1, ior).
+    spec_eta = 2.0f / (1.0f - std::sqrt(std::min(0.08f * m.specular, 0.99f))) - 1.0f;
+    spec_f0 = (spec_eta - 1.0f) * (spec_eta - 1.0f) / ((spec_eta + 1.0f) * (spec_eta + 1.0f));
+    // Lobe selection: the specular layer by its average normal-incidence reflectance (at least 1/4 of its
+    // weight so that grazing Fresnel is sampled too), the glass by its weight.
+    const float p_spec = w_spec * std::max(0.25f, (cspec0.x + cspec0.y + cspec0.z) / 3.0f);
+    const float p_glass = w_glass_reflect > 0.0f || w_glass_refract > 0.0f ? w_glass : 0.0f;
+    const float sum = w_diffuse + p_spec + p_glass;
+    if (sum <= 0.0f) {
+        q_diffuse = q_spec = q_glass = 0.0f;  // no closure left: the surface absorbs
+        return;
+    }
     q_diffuse = w_diffuse / sum;
     q_spec = p_spec / sum;
-    q_glass = w_glass / sum;
+    q_glass = p_glass / sum;
+}
+
+glm::vec3 Bsdf::spec_fresnel(float cos_h) const {
+    // Cycles interpolate_fresnel_color: blend cspec0 -> white by the normalised dielectric Fresnel.
+    float cos_t;
+    const float fh = (fresnel_dielectric(std::clamp(cos_h, 0.0f, 1.0f), spec_eta, cos_t) - spec_f0) / (1.0f - spec_f0);
+    return cspec0 * (1.0f - fh) + glm::vec3(fh);
 }
 
 glm::vec3 Bsdf::eval(const glm::vec3& wo, const glm::vec3& wi, float& pdf) const {
     pdf = 0.0f;
     const float cos_i = glm::dot(n, wi), cos_o = glm::dot(n, wo);
     if (cos_i <= 0.0f || cos_o <= 0.0f) return glm::vec3(0.0f);
-    glm::vec3 f = w_diffuse * base * kInvPi;
-    pdf = q_diffuse * cos_i * kInvPi;
+    glm::vec3 f(0.0f);
+    if (q_diffuse > 0.0f) {
+        f = w_diffuse * base * kInvPi;
+        if (principled_diffuse) f *= principled_diffuse_factor(roughness, n, wo, wi);
+        pdf = q_diffuse * cos_i * kInvPi;
+    }
     if (q_spec > 0.0f && !spec_delta) {
         const glm::vec3 h = glm::normalize(wo + wi);
         const float cos_h = std::max(glm::dot(n, h), 0.0f), oh = std::max(glm::dot(wo, h), 1e-6f);
         const float d = ggx_d(cos_h, alpha);
         const float g = smith_g1(cos_o, alpha) * smith_g1(cos_i, alpha);
-        const glm::vec3 fr = w_metal * schlick(base, oh) + w_dielectric_spec * schlick(glm::vec3(f0_dielectric), oh);
-        f += fr * (d * g / (4.0f * cos_o * cos_i));
+        f += w_spec * spec_fresnel(glm::dot(wi, h)) * (d * g / (4.0f * cos_o * cos_i));
         pdf += q_spec * d * cos_h / (4.0f * oh);
     }
     return f;
 }
 
-bool Bsdf::sample(const glm::vec3& wo, Sampler& rng, glm::vec3& wi, glm::vec3& weight, bool& delta,
-                  bool& transmitted) const {
+bool Bsdf::sample(const glm::vec3& wo, Sampler& rng, BsdfSample& out) const {
     const float u = rng.next(), u1 = rng.next(), u2 = rng.next();
-    transmitted = false;
-    delta = false;
+    out = BsdfSample{};
+    if (absorbs()) return false;
     if (u < q_glass) {
         // Dielectric interface; a rough one perturbs the normal with a GGX microfacet (single-scattering
-        // approximation) and then refracts or reflects exactly.
+        // approximation) and then refracts or reflects exactly. Reflection with probability F, so the weights
+        // are those of Cycles' closures F and base (1 - F) divided by the probabilities.
         glm::vec3 m = spec_delta ? n : sample_ggx_normal(n, alpha, u1, u2);
         float cos_i = glm::dot(wo, m);
         if (cos_i <= 0.0f) m = n, cos_i = glm::dot(wo, n);
         const float eta = entering ? ior : 1.0f / ior;
         float cos_t;
         const float f = fresnel_dielectric(cos_i, eta, cos_t);
-        delta = true;
+        out.delta = true;
         if (rng.next() < f) {
-            wi = reflect_dir(wo, m);
-            weight = glm::vec3(w_glass / q_glass);
+            out.wi = reflect_dir(wo, m);
+            out.weight = glm::vec3(w_glass_reflect / q_glass);
         } else {
-            wi = glm::normalize(-wo / eta + (cos_i / eta - cos_t) * m);
-            weight = base * (w_glass / q_glass);
-            transmitted = true;
+            out.wi = glm::normalize(-wo / eta + (cos_i / eta - cos_t) * m);
+            out.weight = base * (w_glass_refract / q_glass);
+            out.transmitted = true;
         }
-        return true;
+        return out.weight.x > 0.0f || out.weight.y > 0.0f || out.weight.z > 0.0f;
     }
     if (u < q_glass + q_spec && spec_delta) {
-        wi = reflect_dir(wo, n);
-        const float c = std::max(glm::dot(wo, n), 0.0f);
-        weight = (w_metal * schlick(base, c) + w_dielectric_spec * schlick(glm::vec3(f0_dielectric), c)) / q_spec;
-        delta = true;
-        return glm::dot(wi, n) > 0.0f;
+        out.wi = reflect_dir(wo, n);
+        out.weight = w_spec * spec_fresnel(std::max(glm::dot(wo, n), 0.0f)) / q_spec;
+        out.delta = true;
+        return glm::dot(out.wi, n) > 0.0f;
     }
     if (u < q_glass + q_spec) {
         const glm::vec3 h = sample_ggx_normal(n, alpha, u1, u2);
-        wi = reflect_dir(wo, h);
+        out.wi = reflect_dir(wo, h);
     } else {
         // Cosine-weighted hemisphere (Malley's method).
         const float r = std::sqrt(u1), phi = 2.0f * kPi * u2;
         glm::vec3 t, b;
         make_frame(n, t, b);
-        wi = r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0f, 1.0f - u1)) * n;
+        out.wi = r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0f, 1.0f - u1)) * n;
+        out.diffuse = true;
     }
-    float pdf;
-    const glm::vec3 f = eval(wo, wi, pdf);
-    if (!(pdf > 0.0f)) return false;
+    const glm::vec3 f = eval(wo, out.wi, out.pdf);
+    if (!(out.pdf > 0.0f)) return false;
     // Non-delta lobes use the one-sample combined pdf; pdf already includes q of each non-delta lobe.
-    weight = f * glm::dot(n, wi) / pdf;
+    out.weight = f * glm::dot(n, out.wi) / out.pdf;
     return true;
 }
 

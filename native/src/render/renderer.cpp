@@ -338,7 +338,52 @@ public:
         return sf;
     }
 
+    // The nearest area light that `ray` sees before its tmax (Cycles lights_intersect); -1 if none.
+    int nearest_light_hit(const Ray& ray, LightHit& hit) const {
+        int best = -1;
+        float tmax = ray.tmax;
+        for (std::size_t i = 0; i < s_.lights.size(); ++i) {
+            LightHit h;
+            if (intersect_light(s_.lights[i], ray.o, ray.d, tmax, h) && h.t > ray.tmin) {
+                hit = h;
+                tmax = h.t;
+                best = int(i);
+            }
+        }
+        return best;
+    }
+
+    // The segment of `ray`, adding the emission of an area light in front of its mesh hit (lights do not
+    // occlude: the ray goes on behind the light, as in Cycles). `mis_pdf` > 0: the ray was sampled from a
+    // non-delta BSDF with that pdf and the light's emission is weighted against next-event estimation.
+    Segment trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf, const glm::vec3& beta,
+                              glm::vec3& radiance, Sampler& rng, Counters& c) const {
+        LightHit lh;
+        if (s_.lights.empty() || nearest_light_hit(ray, lh) < 0) return first ? *first : trace(ray, rng, c);
+        if (first && (first->mesh || first->terminated) && first->t < lh.t) return *first;
+        Ray near = ray;
+        near.tmax = lh.t;
+        Segment s1 = trace(near, rng, c);
+        if (s1.mesh || s1.terminated) return s1;
+        const float w = mis_pdf > 0.0f ? power_heuristic(mis_pdf, lh.pdf) : 1.0f;
+        radiance += beta * s1.transmittance * lh.radiance * w;
+        Ray far = ray;
+        far.tmin = lh.t;
+        const Segment s2 = trace_with_lights(far, nullptr, mis_pdf, beta * s1.transmittance, radiance, rng, c);
+        Segment seg = s2;
+        seg.radiance = s1.radiance + s1.transmittance * s2.radiance;
+        seg.transmittance = s1.transmittance * s2.transmittance;
+        if (s1.depth < kInf) {
+            seg.depth = s1.depth;
+            seg.normal = s1.normal;
+        }
+        return seg;
+    }
+
     // One path from a camera ray. Returns the radiance; writes coverage, depth and normal of the primary segment.
+    // Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
+    // last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
+    // (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
     glm::vec3 path(Ray ray, Sampler& rng, Counters& c, float& alpha, float& depth, glm::vec3& normal,
                    const Segment* first = nullptr) const {
         glm::vec3 radiance(0.0f), beta(1.0f);
@@ -347,11 +392,16 @@ public:
         depth = kInf;
         normal = glm::vec3(0.0f);
         int bounce = 0, passes = 0;
+        bool after_diffuse = false;  // Cycles PATH_RAY_DIFFUSE: the last bounce was diffuse
+        bool last = false;           // the ray leaving the last vertex: emission only
+        float mis_pdf = 0.0f;        // pdf of the BSDF sample that made `ray` (0: camera or delta)
         const Material default_material;
         for (;;) {
-            Segment seg = first ? *first : trace(ray, rng, c);
+            Segment seg = trace_with_lights(ray, first, mis_pdf, beta, radiance, rng, c);
             first = nullptr;
-            radiance += beta * seg.radiance;
+            // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
+            // (the ray still takes their transmittance).
+            if (!last) radiance += beta * seg.radiance;
             if (camera_segment) {
                 if (depth == kInf && seg.depth < kInf) {
                     depth = seg.depth;
@@ -392,10 +442,17 @@ public:
             }
             radiance += beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
                         mat.emission_strength;
+            if (last) break;
             glm::vec3 ns = entering ? sf.ns : -sf.ns;
             const glm::vec3 wo = -ray.d;
             if (glm::dot(ns, wo) <= 0.0f) ns = ng;
-            const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, entering);
+            LobeFilter filter;
+            if (after_diffuse) {
+                filter.reflective = st_.caustics_reflective;
+                filter.refractive = st_.caustics_refractive;
+            }
+            const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, entering, filter);
+            if (bsdf.absorbs()) break;
             const glm::vec3 p_out = sf.p + ng * eps;
             if (bsdf.has_non_delta()) {
                 for (const Light& l : s_.lights) {
@@ -407,24 +464,30 @@ public:
                     const float cos_i = glm::dot(ns, ls.wi);
                     if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
                     const float vis = shadow(p_out, ls.wi, ls.distance, false, c);
-                    if (vis > 0.0f) radiance += beta * f * cos_i * ls.value * vis;
+                    // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
+                    const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
+                    if (vis > 0.0f) radiance += beta * f * cos_i * ls.value * (vis * w);
                 }
             }
-            if (bounce >= st_.max_bounces) break;
-            glm::vec3 wi, weight;
-            bool delta, transmitted;
-            if (!bsdf.sample(wo, rng, wi, weight, delta, transmitted)) break;
-            beta *= weight;
+            BsdfSample bs;
+            if (!bsdf.sample(wo, rng, bs)) break;
+            beta *= bs.weight;
             if (!(beta.x > 0.0f || beta.y > 0.0f || beta.z > 0.0f)) break;
-            ++bounce;
-            if (bounce > 3) {
-                // Russian roulette keeps long paths unbiased and cheap.
-                const float q = std::min(0.95f, std::max(beta.x, std::max(beta.y, beta.z)));
-                if (rng.next() >= q) break;
-                beta /= q;
+            after_diffuse = bs.diffuse;
+            mis_pdf = bs.delta ? 0.0f : bs.pdf;
+            if (bounce >= st_.max_bounces) {
+                last = true;
+            } else {
+                ++bounce;
+                if (bounce > 3) {
+                    // Russian roulette keeps long paths unbiased and cheap.
+                    const float q = std::min(0.95f, std::max(beta.x, std::max(beta.y, beta.z)));
+                    if (rng.next() >= q) break;
+                    beta /= q;
+                }
             }
-            const bool below = glm::dot(wi, ng) < 0.0f;
-            ray = Ray{sf.p + (below ? -ng : ng) * eps, wi, 0.0f, kInf};
+            const bool below = glm::dot(bs.wi, ng) < 0.0f;
+            ray = Ray{sf.p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
         }
         return radiance;
     }

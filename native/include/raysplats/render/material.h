@@ -15,12 +15,25 @@ struct ImageTexture {
     bool srgb = false;  // convert from display sRGB to linear on lookup
 };
 
+// Diffuse lobe of a material.
+enum class DiffuseModel {
+    Lambert,     // f = base / pi (Blender 4.x Principled v2, Diffuse BSDF with roughness 0)
+    // Blender 2.8-3.x Principled v1 (Cycles bsdf_principled_diffuse.h, PRINCIPLED_DIFFUSE_FULL), Disney 2012:
+    // f = base / pi * [(1 - FV/2)(1 - FL/2) + RR (FL + FV + FL FV (RR - 1))], F* = (1 - cos)^5,
+    // RR = roughness * (1 + dot(L, V)) (retro-reflection, brighter towards the light for rough surfaces).
+    Principled,
+};
+
 struct Material {
     std::array<float, 3> base_color{0.8f, 0.8f, 0.8f};  // linear RGB
     ImageTexture base_color_texture;                    // used when pixels != nullptr, sampled bilinearly at the UVs
     float metallic = 0.0f;
     float roughness = 0.5f;      // GGX alpha = roughness^2; below 0.02 the lobes are perfectly specular
-    float specular = 0.5f;       // dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled)
+    // Dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled). The specular layer (metal and
+    // dielectric in one, as Cycles 3.x does) has F0 colour cspec0 = lerp(0.08 * specular, base, metallic) and the
+    // Fresnel of Cycles' interpolate_fresnel_color: cspec0 + (1 - cspec0) * normalised dielectric Fresnel.
+    float specular = 0.5f;
+    DiffuseModel diffuse_model = DiffuseModel::Lambert;
     float transmission = 0.0f;   // weight of the glass lobe
     float ior = 1.45f;
     std::array<float, 3> emission_color{0.0f, 0.0f, 0.0f};

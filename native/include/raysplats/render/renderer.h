@@ -1,5 +1,5 @@
 // The renderer (DESIGN §6): tiles in parallel, Gaussians composited in exact depth order (or stochastically),
-// meshes path traced with next-event estimation.
+// meshes path traced with next-event estimation (MIS with BSDF sampling for area lights, which rays see).
 #pragma once
 
 #include <atomic>
@@ -38,6 +38,11 @@ struct RenderSettings {
     // true: camera rays that escape show nothing (rgba is premultiplied by coverage, Blender's Film >
     // Transparent). false: they show the world, and rgba alpha is 1. The alpha buffer is coverage either way.
     bool transparent_background = false;
+    // Cycles' "Caustics" (Render > Light Paths > Caustics, defaults on): when off, a path whose last bounce was
+    // diffuse gets no glossy/specular reflection (refraction) lobes at its next surface, so it cannot make
+    // reflective (refractive) caustics; a surface left without lobes (a mirror, a metal) absorbs such paths.
+    bool caustics_reflective = true;
+    bool caustics_refractive = true;
 
     // Throws InvalidArgument with the offending setting.
     void validate() const;
