@@ -1,5 +1,6 @@
-// Lights in Blender/Cycles units (DESIGN §6). Lights are not visible to camera or reflection rays; they are
-// sampled by next-event estimation only.
+// Lights in Blender/Cycles units (DESIGN §6). Point, spot and sun lights are delta lights, reached by
+// next-event estimation only; area lights are also visible to camera and reflection rays (one-sided), and
+// both ways of reaching them are combined by multiple importance sampling (power heuristic), as in Cycles.
 //
 // Unit conventions, from Cycles 3.x (intern/cycles/kernel/light/light.h, lamp_light_sample, and
 // intern/cycles/kernel/closure/emissive.h, whose emission closure evaluates to 1):
