@@ -48,7 +48,7 @@ def frame_camera(obj):
     centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     bpy.context.scene.collection.objects.link(camera)
-    camera.location = centre + np.array([0.0, -1.1 * size, 0.35 * size])
+    camera.location = centre + np.array([0.0, -1.6 * size, 0.3 * size])
     direction = mathutils.Vector(centre) - camera.location
     camera.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()  # camera looks down its -Z
     camera.data.clip_start, camera.data.clip_end = size * 1e-3, size * 100
@@ -93,6 +93,15 @@ def main():
     #    with the Gaussian-falloff material (a preview of the splats, not the ray-traced Gaussians).
     scene = bpy.context.scene
     frame_camera(obj)
+    # A floor under the splats and a sun: the splats cast their semi-transparent shadow on it.
+    corners = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.vertices.foreach_get("co", corners)
+    world_matrix = np.array(obj.matrix_world)
+    points = corners.reshape(-1, 3) @ world_matrix[:3, :3].T + world_matrix[:3, 3]
+    floor_height = float(np.percentile(points[:, 2], 1))
+    bpy.ops.mesh.primitive_plane_add(size=50.0, location=(*np.median(points, axis=0)[:2], floor_height))
+    bpy.ops.object.light_add(type="SUN", rotation=(math.radians(35), 0.0, math.radians(-40)))
+    bpy.context.object.data.energy = 1.2
     engines = {e.bl_idname for e in bpy.types.RenderEngine.__subclasses__()}
     scene.render.engine = "RAYSPLATS" if "RAYSPLATS" in engines else "CYCLES"
     if scene.render.engine == "CYCLES":
