@@ -10,6 +10,7 @@ PACKAGES=(
   libopenmesh-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libdraco-dev draco
   libzstd-dev zlib1g-dev
   libgtest-dev libbenchmark-dev assimp-utils
+  xvfb xauth libgl1-mesa-dri
 )
 
 missing=()

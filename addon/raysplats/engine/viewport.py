@@ -8,6 +8,10 @@ from .. import native
 from . import sync
 
 
+# Diagnostics: the last viewport image drawn (samples accumulated, splats), for status displays and tests.
+last_draw = {"samples": 0, "splats": 0, "draws": 0}
+
+
 class ViewportState:
     def __init__(self):
         self.render_scene = None
@@ -90,6 +94,7 @@ def view_draw(engine, context, depsgraph):
             engine.tag_redraw()
     if state.texture is None:
         return
+    last_draw.update(samples=state.samples, splats=state.stats.splats, draws=last_draw["draws"] + 1)
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
     draw_texture_2d(state.texture, (0, 0), region.width, region.height)
