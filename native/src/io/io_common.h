@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <streambuf>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,47 @@ private:
     std::string path_, temp_path_;
     int fd_ = -1;
     bool committed_ = false;
+};
+
+// A std::streambuf over an AtomicFileWriter, for writers that produce a std::ostream (OpenMesh): buffers
+// 1 MiB and hands it to the writer; call sync() (or std::ostream::flush) before AtomicFileWriter::commit().
+class AtomicFileStreamBuf : public std::streambuf {
+public:
+    explicit AtomicFileStreamBuf(AtomicFileWriter& writer) : writer_(writer), buffer_(std::size_t(1) << 20) {
+        setp(buffer_.data(), buffer_.data() + buffer_.size());
+    }
+    ~AtomicFileStreamBuf() override = default;
+
+protected:
+    int_type overflow(int_type ch) override {
+        flush_buffer();
+        if (!traits_type::eq_int_type(ch, traits_type::eof())) {
+            *pptr() = traits_type::to_char_type(ch);
+            pbump(1);
+        }
+        return traits_type::not_eof(ch);
+    }
+    std::streamsize xsputn(const char* s, std::streamsize n) override {
+        if (n >= std::streamsize(buffer_.size() / 2)) {
+            flush_buffer();
+            writer_.write(s, std::size_t(n));
+            return n;
+        }
+        return std::streambuf::xsputn(s, n);
+    }
+    int sync() override {
+        flush_buffer();
+        return 0;
+    }
+
+private:
+    void flush_buffer() {
+        const std::size_t n = std::size_t(pptr() - pbase());
+        if (n) writer_.write(pbase(), n);
+        setp(buffer_.data(), buffer_.data() + buffer_.size());
+    }
+    AtomicFileWriter& writer_;
+    std::vector<char> buffer_;
 };
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
