@@ -1,6 +1,6 @@
 // Mesh export benchmark (DESIGN §7, §8): splat file -> splat patches -> GLB, Draco GLB, PLY (and OBJ with
 // --obj), with times, output sizes and the Draco size as a fraction of the plain GLB.
-//   bench_mesh_export [file] [output-dir] [--obj] [--level N]
+//   bench_mesh_export [file] [output-dir] [--obj] [--only glb|draco|ply|obj] [--level N]
 // Default file: showroom_1.5M.ply in RAYSPLATS_DATA_DIR; default output dir: /tmp.
 #include <chrono>
 #include <cstdio>
@@ -24,11 +24,13 @@ int main(int argc, char** argv) {
     std::string file = std::string(RAYSPLATS_DATA_DIR) + "/showroom_1.5M.ply";
     std::string out_dir = "/tmp";
     bool obj = false;
+    std::string only;  // --only glb|draco|ply|obj
     int level = 7;
     int positional = 0;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--obj") obj = true;
+        else if (a == "--only" && i + 1 < argc) only = argv[++i];
         else if (a == "--level" && i + 1 < argc) level = std::atoi(argv[++i]);
         else if (positional == 0) file = a, ++positional;
         else out_dir = a, ++positional;
@@ -64,11 +66,13 @@ int main(int argc, char** argv) {
                         double(size) / 1e6);
             return double(size);
         };
-        const double glb = export_to("bench_mesh_export.glb", false);
-        const double draco = export_to("bench_mesh_export_draco.glb", true);
-        export_to("bench_mesh_export.ply", false);
-        if (obj) export_to("bench_mesh_export.obj", false);
-        std::printf("Draco GLB / plain GLB = %.3f (compression level %d)\n", draco / glb, level);
+        auto run = [&](const std::string& what) { return only.empty() || only == what; };
+        const double glb = run("glb") ? export_to("bench_mesh_export.glb", false) : 0;
+        const double draco = run("draco") ? export_to("bench_mesh_export_draco.glb", true) : 0;
+        if (run("ply")) export_to("bench_mesh_export.ply", false);
+        if (obj || only == "obj") export_to("bench_mesh_export.obj", false);
+        if (glb > 0 && draco > 0)
+            std::printf("Draco GLB / plain GLB = %.3f (compression level %d)\n", draco / glb, level);
     } catch (const raysplats::Error& e) {
         std::fprintf(stderr, "bench_mesh_export: %s\n", e.what());
         return 1;

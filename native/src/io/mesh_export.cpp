@@ -139,10 +139,11 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
     }
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain / 4), [&](const tbb::blocked_range<std::size_t>& r) {
-        std::vector<float> rim(3 * K);
+        // Rim vertices straight into place, after each Gaussian's centre vertex.
+        gaussian_polygons(cloud, r.begin(), r.end(), settings, &mesh.positions[3 * (r.begin() * vpg + 1)], 3 * vpg);
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const float* m = &cloud.positions[3 * i];
-            gaussian_polygon(m, &cloud.rotations[4 * i], &cloud.scales[3 * i], settings, rim.data());
+            const float* rim = &mesh.positions[3 * (i * vpg + 1)];
             // Normal by the winding (a1 × a2): (v0 - m) × (v1 - m) over consecutive rim vertices is
             // proportional to it for any K >= 3.
             double e1[3], e2[3];
@@ -163,7 +164,6 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
             float* col = &mesh.colors[4 * v0];
             float* uv = &mesh.uvs[2 * v0];
             std::memcpy(pos, m, 3 * sizeof(float));
-            std::memcpy(pos + 3, rim.data(), 3 * K * sizeof(float));
             for (std::size_t k = 0; k < vpg; ++k) {
                 std::memcpy(nor + 3 * k, normal, sizeof(normal));
                 std::memcpy(col + 4 * k, rgb, sizeof(rgb));
