@@ -49,7 +49,7 @@ public:
 
     void add_splats(const std::string& name, const FloatArray& positions, const FloatArray& rotations,
                     const FloatArray& scales, const FloatArray& opacities, const FloatArray& sh, int vertices_per_polygon,
-                    float radius, int material, std::optional<DoubleArray> node_matrix, bool keep_gaussians) {
+                    float radius, int material, std::optional<DoubleArray> node_matrix, bool keep_gaussians, bool patches) {
         const py::ssize_t n = opacities.size();
         check_size(positions.size(), 3 * n, "positions");
         check_size(rotations.size(), 4 * n, "rotations");
@@ -66,13 +66,15 @@ public:
         cloud.scales.assign(scales.data(), scales.data() + scales.size());
         cloud.opacities.assign(opacities.data(), opacities.data() + opacities.size());
         cloud.sh.assign(sh.data(), sh.data() + sh.size());
-        raysplats::ExportMesh mesh;
-        {
-            py::gil_scoped_release release;
-            mesh = raysplats::splat_patches(cloud, {vertices_per_polygon, radius}, name, material);
+        if (patches) {
+            raysplats::ExportMesh mesh;
+            {
+                py::gil_scoped_release release;
+                mesh = raysplats::splat_patches(cloud, {vertices_per_polygon, radius}, name, material);
+            }
+            copy_matrix(node_matrix, mesh.node_matrix, "node_matrix");
+            scene_.meshes.push_back(std::move(mesh));
         }
-        copy_matrix(node_matrix, mesh.node_matrix, "node_matrix");
-        scene_.meshes.push_back(std::move(mesh));
         if (keep_gaussians) scene_.gaussians.push_back(std::move(cloud));
     }
 
@@ -171,9 +173,9 @@ void register_mesh_export(py::module_& m) {
              "Adds a PBR material (linear base colour RGBA); returns its index.")
         .def("add_splats", &MeshExportScene::add_splats, "name"_a, "positions"_a, "rotations"_a, "scales"_a,
              "opacities"_a, "sh"_a, "vertices_per_polygon"_a = 8, "radius"_a = 3.0f, "material"_a = -1,
-             "node_matrix"_a = py::none(), "keep_gaussians"_a = false,
-             "Adds Gaussians (in output coordinates) as fan-triangulated splat patches; keep_gaussians also keeps "
-             "them for KHR_gaussian_splatting.")
+             "node_matrix"_a = py::none(), "keep_gaussians"_a = false, "patches"_a = true,
+             "Adds Gaussians (in output coordinates) as fan-triangulated splat patches (unless patches=False); "
+             "keep_gaussians also keeps them for KHR_gaussian_splatting.")
         .def("add_triangles", &MeshExportScene::add_triangles, "name"_a, "positions"_a, "triangles"_a,
              "normals"_a = py::none(), "triangle_materials"_a = py::none(), "material_slots"_a = std::vector<int>(),
              "transform"_a, "node_matrix"_a = py::none(),

@@ -241,7 +241,8 @@ void add_draco_mesh(tinygltf::Model& model, BufferLayout& layout, const ExportMe
     }
 }
 
-// Gaussians as a point primitive with the KHR_gaussian_splatting extension (Khronos release candidate):
+// Gaussians as a point primitive with the KHR_gaussian_splatting extension (Khronos; colour space left at
+// its default, BT.709 display values as 3DGS scenes are trained):
 // POSITION, COLOR_0 (SH DC colour, linear, alpha = opacity), and the extension's attributes ROTATION
 // (unit quaternion x, y, z, w as glTF orders them), SCALE (linear) and OPACITY, plus SH_DEGREE_l_COEF_k for
 // the SH coefficients (RGB per coefficient).
@@ -298,8 +299,7 @@ void add_gaussians(tinygltf::Model& model, BufferLayout& layout, const GaussianC
                             std::memcpy(o, &cloud.sh[(std::size_t(coeffs) * i + std::size_t(k)) * 3], 12);
                         });
     }
-    prim.extensions[kSplatExtension] = json_object({{"kernel", tinygltf::Value(std::string("ellipse"))},
-                                                    {"colorSpace", tinygltf::Value(std::string("srgb_rec709_display"))}});
+    prim.extensions[kSplatExtension] = json_object({{"kernel", tinygltf::Value(std::string("ellipse"))}});
     out.primitives.push_back(prim);
 }
 
