@@ -1,6 +1,7 @@
 // Draco encoding of one export mesh part, for KHR_draco_mesh_compression. Float attributes are quantised
-// with the requested bits; colours are 8-bit integers (lossless). The points keep the part's vertex order
-// and no points are merged, so the decoded primitive has exactly the part's vertex and triangle counts.
+// with the requested bits; colours are 8-bit integers (lossless). No points are merged (the mesh is built
+// without deduplication), so the decoded primitive has exactly the part's vertex and triangle counts; the
+// Edgebreaker coder may reorder them, which KHR_draco_mesh_compression allows.
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
