@@ -49,5 +49,5 @@ def main():
 
 
 if __name__ == "__main__":
-    cli._ensure_addon()
+    cli.ensure_addon()
     main()

@@ -37,7 +37,10 @@ class UsageError(Exception):
     pass
 
 
-def _ensure_addon():
+_registered_here = None  # the add-on package when this script registered it (unregistered again at the end)
+
+
+def ensure_addon():
     """Registers the add-on this file belongs to (the source tree's, or the installed copy's), unless Blender
     already has a RaySplats add-on enabled."""
     if hasattr(bpy.types.Object, "raysplats"):
@@ -50,6 +53,8 @@ def _ensure_addon():
         sys.path.insert(0, os.path.dirname(package_dir))
     import raysplats
     raysplats.register()
+    global _registered_here
+    _registered_here = raysplats
 
 
 def _parser():
@@ -129,12 +134,12 @@ def _import_splats(source, args):
 def _open_input(source, args):
     if source.lower().endswith(".blend"):
         bpy.ops.wm.open_mainfile(filepath=source)
-        _ensure_addon()
+        ensure_addon()
     else:
         if not source.lower().endswith(SPLAT_EXTENSIONS):
             raise ValueError(f"'{source}': not a .blend or splat file (.ply, .splat, .spz)")
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        _ensure_addon()
+        ensure_addon()
         _import_splats(source, args)
 
 
@@ -142,7 +147,7 @@ def _do_import(source, target, args):
     if not source.lower().endswith(SPLAT_EXTENSIONS):
         raise ValueError(f"'{source}': not a splat file (.ply, .splat, .spz)")
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    _ensure_addon()
+    ensure_addon()
     obj = _import_splats(source, args)
     temporary = _temporary(target)
     try:
@@ -195,7 +200,8 @@ def frame_camera(scene):
 def setup_render(scene, resolution, samples):
     """The RaySplats engine when it is registered, else Cycles on the CPU (denoising off: Debian's Blender
     has no OpenImageDenoise), as examples/demo.py does. Returns the engine's name."""
-    engines = {engine.bl_idname for engine in bpy.types.RenderEngine.__subclasses__()}
+    # getattr: Blender 4.x lists base classes without bl_idname (HydraRenderEngine) among the subclasses.
+    engines = {getattr(engine, "bl_idname", None) for engine in bpy.types.RenderEngine.__subclasses__()}
     scene.render.engine = "RAYSPLATS" if "RAYSPLATS" in engines else "CYCLES"
     if scene.render.engine == "CYCLES":
         scene.cycles.samples = samples
@@ -232,7 +238,7 @@ def _do_render(source, target, args):
 
 
 def _do_convert(source, target, args):
-    _ensure_addon()
+    ensure_addon()
     from raysplats import native
     core = native.core()
     cloud = core.read_splats(source)
@@ -286,13 +292,18 @@ def main(argv=None):
     if argv is None:
         argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     try:
-        _ensure_addon()
+        ensure_addon()
         status = run(argv)
     except UsageError as error:
         print(f"raysplats: error: {error}", file=sys.stderr, flush=True)
         status = 2
     except SystemExit as exit_request:  # argparse: --help (0) or a usage error (2)
         status = exit_request.code if isinstance(exit_request.code, int) else 2
+    finally:
+        # Blender as a Python module (PyPI bpy) crashes at exit while add-on classes are registered; Blender
+        # itself would unregister them on quit. Undo what this script registered.
+        if _registered_here is not None and hasattr(bpy.types.Object, "raysplats"):
+            _registered_here.unregister()
     sys.exit(status)
 
 
