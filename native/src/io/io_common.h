@@ -5,7 +5,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <algorithm>
+#include <exception>
 #include <streambuf>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -65,18 +68,24 @@ private:
     bool committed_ = false;
 };
 
-// A std::streambuf over an AtomicFileWriter, for writers that produce a std::ostream (OpenMesh): buffers
-// 1 MiB and hands it to the writer; call sync() (or std::ostream::flush) before AtomicFileWriter::commit().
+// A std::streambuf over an AtomicFileWriter, for writers that produce a std::ostream (OpenMesh). Double
+// buffered: a full 4 MiB buffer is written by a helper thread while the caller fills the other one, so the
+// kernel's copy into the page cache overlaps the formatting. Call sync() (std::ostream::flush) before
+// AtomicFileWriter::commit(); write errors surface there (or at the next buffer switch) as the writer's
+// FileFormatError.
 class AtomicFileStreamBuf : public std::streambuf {
 public:
-    explicit AtomicFileStreamBuf(AtomicFileWriter& writer) : writer_(writer), buffer_(std::size_t(1) << 20) {
-        setp(buffer_.data(), buffer_.data() + buffer_.size());
+    explicit AtomicFileStreamBuf(AtomicFileWriter& writer) : writer_(writer) {
+        for (auto& b : buffers_) b.resize(kBufferSize);
+        setp(buffers_[0].data(), buffers_[0].data() + kBufferSize);
     }
-    ~AtomicFileStreamBuf() override = default;
+    ~AtomicFileStreamBuf() override {
+        if (worker_.joinable()) worker_.join();
+    }
 
 protected:
     int_type overflow(int_type ch) override {
-        flush_buffer();
+        switch_buffers();
         if (!traits_type::eq_int_type(ch, traits_type::eof())) {
             *pptr() = traits_type::to_char_type(ch);
             pbump(1);
@@ -84,26 +93,55 @@ protected:
         return traits_type::not_eof(ch);
     }
     std::streamsize xsputn(const char* s, std::streamsize n) override {
-        if (n >= std::streamsize(buffer_.size() / 2)) {
-            flush_buffer();
-            writer_.write(s, std::size_t(n));
-            return n;
+        std::streamsize done = 0;
+        while (done < n) {
+            if (pptr() == epptr()) switch_buffers();
+            const std::streamsize room = std::min<std::streamsize>(n - done, epptr() - pptr());
+            std::memcpy(pptr(), s + done, std::size_t(room));
+            pbump(int(room));
+            done += room;
         }
-        return std::streambuf::xsputn(s, n);
+        return n;
     }
     int sync() override {
-        flush_buffer();
+        switch_buffers();
+        wait();
         return 0;
     }
 
 private:
-    void flush_buffer() {
-        const std::size_t n = std::size_t(pptr() - pbase());
-        if (n) writer_.write(pbase(), n);
-        setp(buffer_.data(), buffer_.data() + buffer_.size());
+    static constexpr std::size_t kBufferSize = std::size_t(4) << 20;
+
+    void wait() {
+        if (worker_.joinable()) worker_.join();
+        if (error_) {
+            std::exception_ptr e = error_;
+            error_ = nullptr;
+            std::rethrow_exception(e);
+        }
     }
+    void switch_buffers() {
+        const std::size_t n = std::size_t(pptr() - pbase());
+        wait();
+        if (n) {
+            const char* data = pbase();
+            worker_ = std::thread([this, data, n] {
+                try {
+                    writer_.write(data, n);
+                } catch (...) {
+                    error_ = std::current_exception();
+                }
+            });
+            current_ ^= 1;
+        }
+        setp(buffers_[current_].data(), buffers_[current_].data() + kBufferSize);
+    }
+
     AtomicFileWriter& writer_;
-    std::vector<char> buffer_;
+    std::vector<char> buffers_[2];
+    int current_ = 0;
+    std::thread worker_;
+    std::exception_ptr error_;
 };
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).

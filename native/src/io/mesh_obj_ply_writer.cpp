@@ -10,8 +10,11 @@
 #include <OpenMesh/Core/Mesh/BaseKernel.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstdio>
+#include <exception>
 #include <cstring>
 #include <mutex>
 #include <ostream>
@@ -71,6 +74,13 @@ public:
 
     const std::vector<FaceGroup>& groups() const { return groups_; }
 
+    // Restricts the exporter to vertices [v0, v0 + nv) and faces [f0, f0 + nf), renumbered from 0, while face
+    // vertex indices stay global: OpenMesh then writes one slice of the records, so slices can be written in
+    // parallel and concatenated (write_ply).
+    void set_window(std::size_t v0, std::size_t nv, std::size_t f0, std::size_t nf) {
+        vertex_window_ = v0, face_window_ = f0, n_vertices_ = nv, n_faces_ = nf;
+    }
+
     // Vertices
     Vec3f point(VertexHandle vh) const override {
         const float* p = attr(vh, 0, 3);
@@ -107,8 +117,9 @@ public:
 
     // Faces
     unsigned int get_vhandles(FaceHandle fh, std::vector<VertexHandle>& out) const override {
-        const FaceGroup& g = group_of(std::size_t(fh.idx()));
-        const std::size_t t = g.part->triangle_begin + (std::size_t(fh.idx()) - g.face_begin);
+        const std::size_t f = face_window_ + std::size_t(fh.idx());
+        const FaceGroup& g = group_of(f);
+        const std::size_t t = g.part->triangle_begin + (f - g.face_begin);
         out.resize(3);
         for (int c = 0; c < 3; ++c) out[c] = VertexHandle(int(g.vertex_base + g.mesh->triangles[3 * t + c]));
         return 3;
@@ -154,7 +165,7 @@ public:
 private:
     // Attribute `which` (0 position, 1 normal, 2 colour, 3 uv) of a global vertex, or null if its mesh has none.
     const float* attr(VertexHandle vh, int which, int width) const {
-        const std::size_t v = std::size_t(vh.idx());
+        const std::size_t v = vertex_window_ + std::size_t(vh.idx());
         std::size_t m = last_mesh_;
         if (!(v >= mesh_vertex_begin_[m] && v - mesh_vertex_begin_[m] < meshes_[m]->vertex_count())) {
             m = std::size_t(std::upper_bound(mesh_vertex_begin_.begin(), mesh_vertex_begin_.end(), v) -
@@ -180,7 +191,7 @@ private:
     std::vector<const ExportMesh*> meshes_;
     std::vector<std::size_t> mesh_vertex_begin_;
     std::vector<FaceGroup> groups_;
-    std::size_t n_vertices_ = 0, n_faces_ = 0;
+    std::size_t n_vertices_ = 0, n_faces_ = 0, vertex_window_ = 0, face_window_ = 0;
     bool has_normals_ = false, has_colors_ = false, has_uvs_ = false;
     mutable std::size_t last_mesh_ = 0, last_group_ = 0;
     SrgbTable srgb_;
@@ -337,32 +348,140 @@ MeshWriteStats write_obj(const std::string& path, const ExportScene& scene) {
     return stats;
 }
 
+namespace {
+
+// A streambuf appending to memory (one slice of a PLY body), through the streambuf's own put area.
+class MemoryStreamBuf : public std::streambuf {
+public:
+    explicit MemoryStreamBuf(std::size_t reserve) : data_(std::max<std::size_t>(reserve, 64)) {
+        setp(data_.data(), data_.data() + data_.size());
+    }
+    // The bytes written so far (the buffer is trimmed to them).
+    std::vector<char>& data() {
+        data_.resize(std::size_t(pptr() - pbase()));
+        setp(nullptr, nullptr);
+        return data_;
+    }
+
+protected:
+    int_type overflow(int_type ch) override {
+        grow(1);
+        if (!traits_type::eq_int_type(ch, traits_type::eof())) *pptr() = traits_type::to_char_type(ch), pbump(1);
+        return traits_type::not_eof(ch);
+    }
+    std::streamsize xsputn(const char* s, std::streamsize n) override {
+        if (epptr() - pptr() < n) grow(std::size_t(n));
+        std::memcpy(pptr(), s, std::size_t(n));
+        pbump(int(n));
+        return n;
+    }
+
+private:
+    void grow(std::size_t at_least) {
+        const std::size_t used = std::size_t(pptr() - pbase());
+        data_.resize(std::max(2 * data_.size(), used + at_least));
+        setp(data_.data(), data_.data() + data_.size());
+        pbump(int(used));  // the slices are far below 2 GiB (kSliceRecords records)
+    }
+    std::vector<char> data_;
+};
+
+// OpenMesh PLY writer instances, one per concurrent slice. The library's singleton is used by one thread at a
+// time; the others are extra instances, created once and kept for the life of the process (their
+// constructor registers them with OpenMesh's IOManager, which keeps the pointer).
+class PlyWriterPool {
+public:
+    OpenMesh::IO::_PLYWriter_* acquire() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (free_.empty()) return new OpenMesh::IO::_PLYWriter_();  // intentionally never deleted (see above)
+        OpenMesh::IO::_PLYWriter_* w = free_.back();
+        free_.pop_back();
+        return w;
+    }
+    void release(OpenMesh::IO::_PLYWriter_* w) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        free_.push_back(w);
+    }
+
+private:
+    std::mutex mutex_;
+    std::vector<OpenMesh::IO::_PLYWriter_*> free_;
+};
+PlyWriterPool g_ply_writers;
+
+}  // namespace
+
 MeshWriteStats write_ply(const std::string& path, const ExportScene& scene) {
-    SceneExporter exporter(scene);
+    const SceneExporter whole(scene);
     // Positions, RGBA (8-bit sRGB + alpha) and UVs as s, t (the names Blender 3.x's importer reads). No normals:
     // the patches are flat, so every reader derives the same ones from the faces, and the file is 25 % smaller.
     OpenMesh::IO::Options opt = OpenMesh::IO::Options::Binary;
     opt += OpenMesh::IO::Options::LSB;
-    if (exporter.has_vertex_colors()) opt += OpenMesh::IO::Options::VertexColor, opt += OpenMesh::IO::Options::ColorAlpha;
-    if (exporter.has_vertex_texcoords()) opt += OpenMesh::IO::Options::VertexTexCoord, opt += OpenMesh::IO::Options::TexCoordST;
-    AtomicFileWriter file(path);
-    {
-        AtomicFileStreamBuf filebuf(file);
-        std::ostream out(&filebuf);
-        out.exceptions(std::ios::badbit);
-        bool ok;
-        {
-            std::lock_guard<std::mutex> lock(g_openmesh_mutex);
-            ok = OpenMesh::IO::PLYWriter().write(out, exporter, opt, 6);
-        }
-        out.flush();
-        if (!ok || !out) throw FileFormatError(path, "OpenMesh's PLY writer failed");
+    if (whole.has_vertex_colors()) opt += OpenMesh::IO::Options::VertexColor, opt += OpenMesh::IO::Options::ColorAlpha;
+    if (whole.has_vertex_texcoords()) opt += OpenMesh::IO::Options::VertexTexCoord, opt += OpenMesh::IO::Options::TexCoordST;
+
+    // OpenMesh writes the records one value at a time through std::ostream::write, which is what a PLY export
+    // of millions of patches waits on; so the body is cut into slices (vertex ranges, then face ranges), each
+    // written by OpenMesh in parallel into memory, and the slices are concatenated under one header (taken
+    // from OpenMesh's own output, with the total counts).
+    const std::size_t nv = whole.n_vertices(), nf = whole.n_faces();
+    constexpr std::size_t kSliceRecords = std::size_t(1) << 21;
+    struct Slice { std::size_t v0, nv, f0, nf; std::vector<char> bytes; std::string header; };
+    std::vector<Slice> slices;
+    for (std::size_t v = 0; v < nv || (v == 0 && nv == 0); v += kSliceRecords) {
+        slices.push_back({v, std::min(kSliceRecords, nv - v), 0, 0, {}, {}});
+        if (nv == 0) break;
     }
+    for (std::size_t f = 0; f < nf; f += kSliceRecords) slices.push_back({0, 0, f, std::min(kSliceRecords, nf - f), {}, {}});
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    tbb::parallel_for(std::size_t(0), slices.size(), [&](std::size_t i) {
+        Slice& slice = slices[i];
+        try {
+            SceneExporter exporter(scene);
+            exporter.set_window(slice.v0, slice.nv, slice.f0, slice.nf);
+            MemoryStreamBuf buffer(slice.nv * 24 + slice.nf * 13 + 4096);
+            std::ostream out(&buffer);
+            OpenMesh::IO::_PLYWriter_* writer = g_ply_writers.acquire();
+            const bool ok = writer->write(out, exporter, opt, 6);
+            g_ply_writers.release(writer);
+            if (!ok || !out) throw FileFormatError(path, "OpenMesh's PLY writer failed");
+            std::vector<char>& bytes = buffer.data();
+            static const char kEnd[] = "end_header\n";
+            auto end = std::search(bytes.begin(), bytes.end(), kEnd, kEnd + sizeof(kEnd) - 1);
+            if (end == bytes.end()) throw FileFormatError(path, "OpenMesh's PLY writer wrote no header");
+            end += sizeof(kEnd) - 1;
+            slice.header.assign(bytes.begin(), end);
+            slice.bytes.assign(end, bytes.end());
+        } catch (...) {
+            std::lock_guard<std::mutex> lock(error_mutex);
+            if (!error) error = std::current_exception();
+        }
+    });
+    if (error) std::rethrow_exception(error);
+
+    // The header of the first slice, with the real element counts.
+    std::string header = slices.front().header;
+    auto set_count = [&](const std::string& element, std::size_t count) {
+        const std::string key = "element " + element + " ";
+        const std::size_t at = header.find(key);
+        if (at == std::string::npos) throw FileFormatError(path, "OpenMesh's PLY header has no " + element + " element");
+        const std::size_t end = header.find('\n', at);
+        header.replace(at, end - at, key + std::to_string(count));
+    };
+    set_count("vertex", nv);
+    set_count("face", nf);
+
+    AtomicFileWriter file(path);
+    file.write(header.data(), header.size());
+    std::size_t bytes = header.size();
+    for (const Slice& slice : slices) file.write(slice.bytes.data(), slice.bytes.size()), bytes += slice.bytes.size();
     file.commit();
     MeshWriteStats stats;
-    stats.vertices = exporter.n_vertices();
-    stats.triangles = exporter.n_faces();
-    stats.primitives = exporter.groups().size();
+    stats.vertices = nv;
+    stats.triangles = nf;
+    stats.primitives = whole.groups().size();
+    stats.bytes = bytes;
     return stats;
 }
 
