@@ -17,13 +17,39 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <new>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/polygon_bridge.h"
 
 namespace raysplats {
+
+// std::allocator whose resize() leaves new elements uninitialised, so that the multi-threaded fill of a large
+// export mesh is what first touches its pages (in parallel) instead of a single-threaded zeroing pass.
+template <typename T>
+struct DefaultInitAllocator : std::allocator<T> {
+    template <typename U>
+    struct rebind {
+        using other = DefaultInitAllocator<U>;
+    };
+    DefaultInitAllocator() = default;
+    template <typename U>
+    DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+    template <typename U>
+    void construct(U* p) noexcept {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <typename U, typename... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+};
+template <typename T>
+using ExportArray = std::vector<T, DefaultInitAllocator<T>>;
 
 // A PBR material (glTF metallic-roughness; Blender's Principled BSDF base colour, metallic, roughness).
 struct ExportMaterial {
@@ -48,11 +74,11 @@ struct ExportMeshPart {
 // A triangle mesh with per-vertex attributes; optional attributes are empty.
 struct ExportMesh {
     std::string name;
-    std::vector<float> positions;         // 3 per vertex
-    std::vector<float> normals;           // 3 per vertex (optional)
-    std::vector<float> colors;            // 4 per vertex, linear RGB + alpha (optional)
-    std::vector<float> uvs;               // 2 per vertex (optional)
-    std::vector<std::uint32_t> triangles; // 3 per triangle, relative to the part's vertex_begin
+    ExportArray<float> positions;           // 3 per vertex
+    ExportArray<float> normals;             // 3 per vertex (optional)
+    ExportArray<float> colors;              // 4 per vertex, linear RGB + alpha (optional)
+    ExportArray<float> uvs;                 // 2 per vertex (optional)
+    ExportArray<std::uint32_t> triangles;   // 3 per triangle, relative to the part's vertex_begin
     std::vector<ExportMeshPart> parts;
     // Row-major 4x4 placing the mesh in the scene (glTF node matrix). Identity when the vertices are already
     // in output coordinates; OBJ and PLY, which have no scene graph, ignore it.

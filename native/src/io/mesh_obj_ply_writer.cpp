@@ -173,7 +173,7 @@ private:
             last_mesh_ = m;
         }
         const ExportMesh& mesh = *meshes_[m];
-        const std::vector<float>& a = which == 0 ? mesh.positions : which == 1 ? mesh.normals : which == 2 ? mesh.colors : mesh.uvs;
+        const ExportArray<float>& a = which == 0 ? mesh.positions : which == 1 ? mesh.normals : which == 2 ? mesh.colors : mesh.uvs;
         if (a.empty()) return nullptr;
         return &a[std::size_t(width) * (v - mesh_vertex_begin_[m])];
     }
