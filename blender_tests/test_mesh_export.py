@@ -104,6 +104,12 @@ class GltfValidity(unittest.TestCase):
             self.assertIn("KHR_gaussian_splatting:" + name, attributes)
         # The validator (2.0.0-dev.3.10) predates the ratified extension and flags exactly its attribute
         # names; nothing else may be wrong.
+        # In local coordinates the points' node carries the object transform, like the patches' node.
+        doc = mt.gltf_json(mt.export_mesh("khr_splats_local.glb", gaussian_splatting=True, coordinates="LOCAL"))
+        matrices = [node.get("matrix") for node in doc["nodes"]]
+        self.assertEqual(len(matrices), 2)
+        self.assertIsNotNone(matrices[0])
+        self.assertEqual(matrices[0], matrices[1])
         report = mt.check_gltf(path)
         other = [m for m in report["messages"]
                  if m.startswith("error") and not ("MESH_PRIMITIVE_INVALID_ATTRIBUTE" in m and "KHR_gaussian_splatting:" in m)]

@@ -75,7 +75,13 @@ public:
             copy_matrix(node_matrix, mesh.node_matrix, "node_matrix");
             scene_.meshes.push_back(std::move(mesh));
         }
-        if (keep_gaussians) scene_.gaussians.push_back(std::move(cloud));
+        if (keep_gaussians) {
+            raysplats::ExportGaussians g;
+            g.name = name + " Gaussians";
+            copy_matrix(node_matrix, g.node_matrix, "node_matrix");
+            g.cloud = std::move(cloud);
+            scene_.gaussians.push_back(std::move(g));
+        }
     }
 
     void add_triangles(const std::string& name, const FloatArray& positions, const UIntArray& triangles,

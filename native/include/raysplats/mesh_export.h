@@ -89,12 +89,18 @@ struct ExportMesh {
     void check_consistent() const;  // throws InvalidArgument
 };
 
+// Gaussians to write as points with KHR_gaussian_splatting (glTF only, when MeshWriteOptions asks), in output
+// axes, placed by node_matrix like ExportMesh.
+struct ExportGaussians {
+    std::string name;
+    GaussianCloud cloud;
+    double node_matrix[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+};
+
 struct ExportScene {
     std::vector<ExportMesh> meshes;
     std::vector<ExportMaterial> materials;
-    // Gaussians to write with KHR_gaussian_splatting (glTF only, when MeshWriteOptions asks), in output
-    // coordinates (one point primitive per cloud).
-    std::vector<GaussianCloud> gaussians;
+    std::vector<ExportGaussians> gaussians;  // one point primitive (and node) each
 };
 
 enum class MeshFileFormat { Obj, Ply, Gltf, Glb };

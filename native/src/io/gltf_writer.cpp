@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <sstream>
@@ -127,7 +128,7 @@ int add_material(tinygltf::Model& model, const ExportMaterial& m) {
 
 // Writes a mesh's parts as plain (uncompressed) primitives.
 void add_plain_mesh(tinygltf::Model& model, BufferLayout& layout, const ExportMesh& mesh, tinygltf::Mesh& out,
-                    const std::vector<int>& material_ids, const SrgbTable&) {
+                    const std::vector<int>& material_ids) {
     const std::size_t nv = mesh.vertex_count();
     std::size_t max_part = 0;
     for (const ExportMeshPart& p : mesh.parts) max_part = std::max(max_part, p.vertex_count);
@@ -341,7 +342,7 @@ MeshWriteStats write_gltf(const std::string& path, const ExportScene& scene, con
         tinygltf::Mesh gmesh;
         gmesh.name = mesh.name;
         if (options.draco.enabled) add_draco_mesh(model, layout, mesh, gmesh, material_ids, options.draco, draco_parts);
-        else add_plain_mesh(model, layout, mesh, gmesh, material_ids, SrgbTable());
+        else add_plain_mesh(model, layout, mesh, gmesh, material_ids);
         stats.vertices += mesh.vertex_count();
         stats.triangles += mesh.triangle_count();
         stats.primitives += gmesh.primitives.size();
@@ -356,15 +357,18 @@ MeshWriteStats write_gltf(const std::string& path, const ExportScene& scene, con
         gscene.nodes.push_back(int(model.nodes.size() - 1));
     }
     if (options.gaussian_splatting_extension) {
-        for (std::size_t g = 0; g < scene.gaussians.size(); ++g) {
-            if (!scene.gaussians[g].size()) continue;
+        for (const ExportGaussians& gaussians : scene.gaussians) {
+            if (!gaussians.cloud.size()) continue;
             tinygltf::Mesh gmesh;
-            gmesh.name = "Gaussians " + std::to_string(g);
-            add_gaussians(model, layout, scene.gaussians[g], gmesh);
+            gmesh.name = gaussians.name;
+            add_gaussians(model, layout, gaussians.cloud, gmesh);
             model.meshes.push_back(gmesh);
             tinygltf::Node node;
-            node.name = gmesh.name;
+            node.name = gaussians.name;
             node.mesh = int(model.meshes.size() - 1);
+            if (!is_identity(gaussians.node_matrix))
+                for (int c = 0; c < 4; ++c)
+                    for (int r = 0; r < 4; ++r) node.matrix.push_back(gaussians.node_matrix[4 * r + c]);  // column-major
             model.nodes.push_back(node);
             gscene.nodes.push_back(int(model.nodes.size() - 1));
             stats.primitives += 1;

@@ -87,7 +87,7 @@ MeshWriteStats write_mesh_file(const std::string& path, const ExportScene& scene
                 throw InvalidArgument("export mesh '" + m.name + "': material index " + std::to_string(p.material) +
                                       " out of range");
     }
-    for (const GaussianCloud& c : scene.gaussians) c.check_consistent(), gaussians += c.size();
+    for (const ExportGaussians& g : scene.gaussians) g.cloud.check_consistent(), gaussians += g.cloud.size();
     const bool with_gaussians = options.gaussian_splatting_extension &&
                                 (format == MeshFileFormat::Gltf || format == MeshFileFormat::Glb) && gaussians > 0;
     if (triangles == 0 && !with_gaussians)
