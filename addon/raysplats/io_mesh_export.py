@@ -165,6 +165,9 @@ def export_mesh_file(context, filepath, use_selection=False, apply_modifiers=Tru
     materials = _Materials(scene)
     options = {"splat_geometry": splat_geometry, "apply_modifiers": apply_modifiers,
                "gaussian_splatting": gaussian_splatting}
+    for obj in gaussian_objects + mesh_objects:
+        if obj.mode == "EDIT":
+            obj.update_from_editmode()  # edits made in Edit Mode reach the mesh data only through this
     depsgraph = context.evaluated_depsgraph_get()
     gaussians = 0
     with StageProgress(getattr(context, "window_manager", None), "RaySplats mesh export", 2) as progress:
