@@ -141,3 +141,23 @@ class Batch(unittest.TestCase):
         status, output = run_cli("export", st.tmp_file("no_such_*.ply"), "-o", st.tmp_file("x"), "--format", "glb")
         self.assertEqual(status, 2, output)
         self.assertIn("no file matches", output)
+
+    def test_works_from_an_installed_addon(self):
+        if not bpy.app.binary_path or "python" in os.path.basename(bpy.app.binary_path).lower():
+            self.skipTest("needs the Blender executable (user script folders)")
+        # The add-on as scripts/install_addon.sh installs it: a link in <user scripts>/addons.
+        scripts = fresh_dir("batch_user_scripts")
+        os.makedirs(os.path.join(scripts, "addons"))
+        os.symlink(os.path.join(mt.REPO, "addon", "raysplats"), os.path.join(scripts, "addons", "raysplats"))
+        env = dict(os.environ, BLENDER_USER_SCRIPTS=scripts, BLENDER_USER_CONFIG=os.path.join(scripts, "config"))
+        out = os.path.join(scripts, "small.glb")
+        for entry in (["--python", os.path.join(scripts, "addons", "raysplats", "cli.py")],
+                      ["--python-expr", "import raysplats.cli as cli; cli.main()"]):
+            with self.subTest(entry=entry[0]):
+                if os.path.exists(out):
+                    os.remove(out)
+                result = subprocess.run([bpy.app.binary_path, "-b", "-noaudio"] + entry +
+                                        ["--", "export", st.data_file("small.splat"), "-o", out],
+                                        capture_output=True, text=True, env=env, timeout=600)
+                self.assertEqual(result.returncode, 0, result.stdout + result.stderr)
+                self.assertTrue(os.path.exists(out))
