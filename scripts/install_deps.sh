@@ -29,3 +29,13 @@ if ((${#missing[@]})); then
 else
   echo "install_deps: all ${#PACKAGES[@]} packages present"
 fi
+
+# Node.js and npm run the test tools (Khronos glTF validator, draco3d; scripts/setup_test_tools.sh). Any
+# existing installation is kept (e.g. NodeSource's nodejs, which bundles npm and conflicts with Debian's npm).
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  echo "install_deps: installing nodejs npm (test tools)"
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
+fi

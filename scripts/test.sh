@@ -5,6 +5,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 "$root/scripts/install_deps.sh"
+# npm test tools (glTF validator, draco3d) into ~/.cache/raysplats/npm; ctest's setup.test_tools does it too.
+"$root/scripts/setup_test_tools.sh" >/dev/null
 # Blender 4.2 LTS (PyPI bpy) beside Debian's 3.4, when PyPI is reachable: registers the bpy4.* tests.
 bpy4_python=$("$root/scripts/setup_bpy4.sh")
 "$root/scripts/build.sh" "$root/build" -DRAYSPLATS_BPY4_PYTHON="$bpy4_python"

@@ -7,7 +7,7 @@ bl_info = {
     "author": "RaySplats developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "File > Import/Export > Gaussian Splats",
+    "location": "File > Import/Export > Gaussian Splats; File > Export > RaySplats Mesh",
     "description": "Import, edit and export 3D Gaussian Splatting scenes as editable meshes",
     "category": "Import-Export",
 }
@@ -15,14 +15,16 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export, engine):  # noqa: F821
+    for _module in (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export,
+                    io_mesh_export, engine):  # noqa: F821
         importlib.reload(_module)
 else:
-    from . import native, axes, progress, properties, gaussian_mesh, material, io_import, io_export, engine
+    from . import (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export,
+                   io_mesh_export, engine)
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export, engine)
+_modules = (properties, io_import, io_export, io_mesh_export, engine)
 
 
 def register():

@@ -185,8 +185,11 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
 
 }  // namespace
 
+// mesh_export_bindings.cpp
+void register_mesh_export(py::module_& m);
+
 PYBIND11_MODULE(_native, m) {
-    m.doc() = "RaySplats native core: splat file I/O and the polygon bridge (see DESIGN.md).";
+    m.doc() = "RaySplats native core: splat file I/O, the polygon bridge and mesh export (see DESIGN.md).";
 
     auto error = py::register_exception<raysplats::Error>(m, "Error", PyExc_RuntimeError);
     py::register_exception<raysplats::FileFormatError>(m, "FileFormatError", error.ptr());
@@ -207,4 +210,5 @@ PYBIND11_MODULE(_native, m) {
           "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
+    register_mesh_export(m);
 }

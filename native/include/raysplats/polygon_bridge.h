@@ -54,6 +54,12 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
 void gaussian_polygon(const float center[3], const float rotation_wxyz[4], const float scales[3],
                       const PolygonSettings& settings, float* out_vertices);
 
+// gaussian_polygon() of Gaussians [begin, end) of a cloud (bit-identical results, the angle table computed once):
+// the K vertices of Gaussian i go to out + (i - begin) * stride (stride in floats, >= 3K). Single-threaded;
+// callers split ranges across threads.
+void gaussian_polygons(const GaussianCloud& cloud, std::size_t begin, std::size_t end, const PolygonSettings& settings,
+                       float* out, std::size_t stride);
+
 // Blender mesh arrays of any polygon mesh (after modifiers), read with foreach_get.
 struct PolygonMeshView {
     const float* vertex_positions = nullptr;  std::size_t vertex_count = 0;

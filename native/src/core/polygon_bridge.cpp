@@ -222,6 +222,17 @@ void gaussian_polygon(const float center[3], const float rotation_wxyz[4], const
     polygon_of_gaussian(center, rotation_wxyz, scales, PolygonAngles(settings), out);
 }
 
+void gaussian_polygons(const GaussianCloud& cloud, std::size_t begin, std::size_t end, const PolygonSettings& settings,
+                       float* out, std::size_t stride) {
+    settings.validate();
+    if (stride < 3 * std::size_t(settings.vertices_per_polygon) || end > cloud.size() || begin > end)
+        throw InvalidArgument("gaussian_polygons: bad range or stride");
+    const PolygonAngles angles(settings);
+    for (std::size_t i = begin; i < end; ++i)
+        polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles,
+                            out + (i - begin) * stride);
+}
+
 SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSettings& settings) {
     settings.validate();
     cloud.check_consistent();

@@ -5,6 +5,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <algorithm>
+#include <exception>
+#include <streambuf>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -62,6 +66,82 @@ private:
     std::string path_, temp_path_;
     int fd_ = -1;
     bool committed_ = false;
+};
+
+// A std::streambuf over an AtomicFileWriter, for writers that produce a std::ostream (OpenMesh). Double
+// buffered: a full 4 MiB buffer is written by a helper thread while the caller fills the other one, so the
+// kernel's copy into the page cache overlaps the formatting. Call sync() (std::ostream::flush) before
+// AtomicFileWriter::commit(); write errors surface there (or at the next buffer switch) as the writer's
+// FileFormatError.
+class AtomicFileStreamBuf : public std::streambuf {
+public:
+    explicit AtomicFileStreamBuf(AtomicFileWriter& writer) : writer_(writer) {
+        for (auto& b : buffers_) b.resize(kBufferSize);
+        setp(buffers_[0].data(), buffers_[0].data() + kBufferSize);
+    }
+    ~AtomicFileStreamBuf() override {
+        if (worker_.joinable()) worker_.join();
+    }
+
+protected:
+    int_type overflow(int_type ch) override {
+        switch_buffers();
+        if (!traits_type::eq_int_type(ch, traits_type::eof())) {
+            *pptr() = traits_type::to_char_type(ch);
+            pbump(1);
+        }
+        return traits_type::not_eof(ch);
+    }
+    std::streamsize xsputn(const char* s, std::streamsize n) override {
+        std::streamsize done = 0;
+        while (done < n) {
+            if (pptr() == epptr()) switch_buffers();
+            const std::streamsize room = std::min<std::streamsize>(n - done, epptr() - pptr());
+            std::memcpy(pptr(), s + done, std::size_t(room));
+            pbump(int(room));
+            done += room;
+        }
+        return n;
+    }
+    int sync() override {
+        switch_buffers();
+        wait();
+        return 0;
+    }
+
+private:
+    static constexpr std::size_t kBufferSize = std::size_t(4) << 20;
+
+    void wait() {
+        if (worker_.joinable()) worker_.join();
+        if (error_) {
+            std::exception_ptr e = error_;
+            error_ = nullptr;
+            std::rethrow_exception(e);
+        }
+    }
+    void switch_buffers() {
+        const std::size_t n = std::size_t(pptr() - pbase());
+        wait();
+        if (n) {
+            const char* data = pbase();
+            worker_ = std::thread([this, data, n] {
+                try {
+                    writer_.write(data, n);
+                } catch (...) {
+                    error_ = std::current_exception();
+                }
+            });
+            current_ ^= 1;
+        }
+        setp(buffers_[current_].data(), buffers_[current_].data() + kBufferSize);
+    }
+
+    AtomicFileWriter& writer_;
+    std::vector<char> buffers_[2];
+    int current_ = 0;
+    std::thread worker_;
+    std::exception_ptr error_;
 };
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
