@@ -9,7 +9,6 @@ import sys
 import time
 
 import bpy
-import mathutils
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -38,29 +37,11 @@ def enable_addon():
         raysplats.register()
 
 
-def frame_camera(obj):
-    """A camera looking at the bulk of the splats (5th-95th percentile box, robust to floaters)."""
-    corners = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
-    obj.data.vertices.foreach_get("co", corners)
-    world = np.array(obj.matrix_world)
-    points = corners.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3]
-    low, high = np.percentile(points, 5, axis=0), np.percentile(points, 95, axis=0)
-    centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    bpy.context.scene.collection.objects.link(camera)
-    camera.location = centre + np.array([0.0, -1.6 * size, 0.3 * size])
-    direction = mathutils.Vector(centre) - camera.location
-    camera.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()  # camera looks down its -Z
-    camera.data.clip_start, camera.data.clip_end = size * 1e-3, size * 100
-    bpy.context.scene.camera = camera
-    return camera
-
-
 def main():
     args = parse_args()
     os.makedirs(args.out_dir, exist_ok=True)
     enable_addon()
-    from raysplats import io_export, io_import
+    from raysplats import cli, io_export
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     enable_addon()
@@ -89,10 +70,9 @@ def main():
     obj.scale = (1.2, 1.2, 1.2)
     print(f"demo: edited: {len(obj.data.polygons):,} Gaussians left after the crop, rotated 30°, scaled 1.2")
 
-    # 3. Render. The RaySplats engine is used when it is available; until then Cycles renders the polygons
-    #    with the Gaussian-falloff material (a preview of the splats, not the ray-traced Gaussians).
+    # 3. Render with the RaySplats engine: splats and a floor, ray traced together.
     scene = bpy.context.scene
-    frame_camera(obj)
+    cli.frame_camera(scene, distance=1.6, elevation=0.3)
     # A floor under the splats and a sun: the splats cast their semi-transparent shadow on it.
     corners = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
     obj.data.vertices.foreach_get("co", corners)
@@ -102,15 +82,8 @@ def main():
     bpy.ops.mesh.primitive_plane_add(size=50.0, location=(*np.median(points, axis=0)[:2], floor_height))
     bpy.ops.object.light_add(type="SUN", rotation=(math.radians(35), 0.0, math.radians(-40)))
     bpy.context.object.data.energy = 1.2
-    engines = {e.bl_idname for e in bpy.types.RenderEngine.__subclasses__()}
-    scene.render.engine = "RAYSPLATS" if "RAYSPLATS" in engines else "CYCLES"
-    if scene.render.engine == "CYCLES":
-        scene.cycles.samples = args.samples
-        scene.cycles.transparent_max_bounces = 64
-        scene.cycles.device = "CPU"
-        scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise
-    scene.render.resolution_x, scene.render.resolution_y = args.resolution
-    scene.render.resolution_percentage = 100
+    cli.setup_render(scene, args.resolution, args.samples)
+    scene.render.image_settings.file_format = "PNG"
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.color = (0.05, 0.05, 0.05)

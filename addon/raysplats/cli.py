@@ -172,8 +172,9 @@ def _do_export(source, target, args):
     return f"{stats['objects']} objects, {stats['triangles']:,} triangles, {stats['bytes'] / 1e6:.1f} MB"
 
 
-def frame_camera(scene):
-    """A camera looking at the bulk of the scene's mesh vertices (5th-95th percentile box, robust to floaters)."""
+def frame_camera(scene, distance=1.1, elevation=0.35):
+    """A camera looking at the bulk of the scene's mesh vertices (5th-95th percentile box, robust to floaters),
+    `distance` and `elevation` times the box's diagonal away from its centre (along -Y and +Z)."""
     import mathutils
     import numpy as np
     points = []
@@ -190,7 +191,7 @@ def frame_camera(scene):
     centre, size = (low + high) / 2, max(float(np.linalg.norm(high - low)), 1e-3)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
-    camera.location = centre + np.array([0.0, -1.1 * size, 0.35 * size])
+    camera.location = centre + np.array([0.0, -distance * size, elevation * size])
     direction = mathutils.Vector(centre) - camera.location
     camera.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
     camera.data.clip_start, camera.data.clip_end = size * 1e-3, size * 100
@@ -203,7 +204,9 @@ def setup_render(scene, resolution, samples):
     # getattr: Blender 4.x lists base classes without bl_idname (HydraRenderEngine) among the subclasses.
     engines = {getattr(engine, "bl_idname", None) for engine in bpy.types.RenderEngine.__subclasses__()}
     scene.render.engine = "RAYSPLATS" if "RAYSPLATS" in engines else "CYCLES"
-    if scene.render.engine == "CYCLES":
+    if scene.render.engine == "RAYSPLATS":
+        scene.raysplats.samples = samples
+    else:
         scene.cycles.samples = samples
         scene.cycles.transparent_max_bounces = 64
         scene.cycles.device = "CPU"
