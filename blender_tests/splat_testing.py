@@ -99,3 +99,24 @@ def export_file(name, **options):
     result = bpy.ops.export_scene.gaussian_splats(filepath=path, **options)
     assert result == {"FINISHED"}, result
     return native().read_splats(path)
+
+
+def load_image(path):
+    """An image file's pixels as float32 RGBA, rows bottom to top (linear for EXR)."""
+    image = bpy.data.images.load(path)
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    result = pixels.reshape(image.size[1], image.size[0], 4)
+    bpy.data.images.remove(image)
+    return result
+
+
+def render_to_array(name):
+    """Renders the scene with F12's operator into a 32-bit EXR and returns its linear RGBA pixels."""
+    scene = bpy.context.scene
+    path = tmp_file(name + ".exr")
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    return load_image(path)

@@ -100,16 +100,7 @@ def render(scene, engine, name):
         scene.raysplats.max_bounces = 4
         scene.raysplats.seed = 1
         scene.raysplats.caustics_reflective = scene.raysplats.caustics_refractive = False
-    path = st.tmp_file(name + ".exr")
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(path)
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(HEIGHT, WIDTH, 4)[..., :3].astype(np.float64)
+    return st.render_to_array(name)[..., :3].astype(np.float64)
 
 
 class CyclesAgreement(unittest.TestCase):

@@ -73,22 +73,6 @@ def principled_material(name, **values):
     return material
 
 
-def render_to_array(name):
-    """Renders the scene with F12's operator and returns the linear RGBA image, rows bottom to top."""
-    scene = bpy.context.scene
-    path = st.tmp_file(name + ".exr")
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(path)
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    result = pixels.reshape(image.size[1], image.size[0], 4)
-    bpy.data.images.remove(image)
-    return result
-
-
 class RenderEngine(unittest.TestCase):
     def test_engine_and_settings_are_registered(self):
         scene = new_scene()
@@ -122,7 +106,7 @@ class RenderEngine(unittest.TestCase):
         scene.render.film_transparent = True
         ortho_a = 0.5
         add_camera(mathutils.Vector((0, 0, height)) - 5 * sun_direction, sun_direction, ortho_scale=ortho_a)
-        view_a = render_to_array("shadow_view_a")
+        view_a = st.render_to_array("shadow_view_a")
         opacity_integral = view_a[..., 3].sum() * (ortho_a / 320) ** 2
         self.assertGreater(opacity_integral, 1e-3, "the splats must be visible along the sun")
 
@@ -130,10 +114,10 @@ class RenderEngine(unittest.TestCase):
         ortho_b = 1.2
         centre_b = mathutils.Vector((-0.2, 0.0, 5.0))
         add_camera(centre_b, (0, 0, -1), ortho_scale=ortho_b)
-        splat_mask = render_to_array("shadow_view_b_mask")[..., 3] > 1e-3
+        splat_mask = st.render_to_array("shadow_view_b_mask")[..., 3] > 1e-3
         plane.hide_render = False
         scene.render.film_transparent = False
-        ground = render_to_array("shadow_view_b")
+        ground = st.render_to_array("shadow_view_b")
         self.assertFalse(np.isnan(ground).any())
 
         l0_expected = albedo * irradiance * math.cos(theta) / math.pi
@@ -177,7 +161,7 @@ class RenderEngine(unittest.TestCase):
         bpy.ops.object.light_add(type="SUN", rotation=(0.3, 0.2, 0.0))
         camera = add_camera((0.0, -2.0, 0.0), (0, 1, 0), lens=35.0)
 
-        image = render_to_array("mirror")
+        image = st.render_to_array("mirror")
         self.assertFalse(np.isnan(image).any())
         self.assertTrue(np.isfinite(image).all())
 
@@ -199,7 +183,7 @@ class RenderEngine(unittest.TestCase):
 
         # Without the mirror (black diffuse) the same pixels are dark: the colour came from the reflection.
         mirror.data.materials[0] = diffuse_material((0.0, 0.0, 0.0))
-        image_black = render_to_array("mirror_black")
+        image_black = st.render_to_array("mirror_black")
         dark = image_black[r_mirror - 2:r_mirror + 3, c_mirror - 2:c_mirror + 3, :3]
         self.assertLess(dark.mean(), 0.2 * reflected.mean())
 
@@ -229,12 +213,7 @@ class RenderEngine(unittest.TestCase):
         scene.render.image_settings.file_format = "OPEN_EXR"
         scene.render.filepath = st.tmp_file("anim_####")
         bpy.ops.render.render(animation=True)
-        frames = []
-        for frame in (1, 2):
-            image = bpy.data.images.load(st.tmp_file(f"anim_{frame:04d}.exr"))
-            pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-            image.pixels.foreach_get(pixels)
-            frames.append(pixels.reshape(image.size[1], image.size[0], 4))
+        frames = [st.load_image(st.tmp_file(f"anim_{frame:04d}.exr")) for frame in (1, 2)]
         difference = np.abs(frames[1] - frames[0])[..., :3].sum(axis=2)
         left, right = difference[:, :100], difference[:, 100:]
         self.assertGreater(left.sum(), 1.0, "the lattice-deformed splats must change between frames")
@@ -260,19 +239,17 @@ class RenderEngine(unittest.TestCase):
             capture_output=True, text=True, timeout=300)
         self.assertEqual(process.returncode, 0, process.stdout[-2000:] + process.stderr[-2000:])
         self.assertTrue(os.path.exists(output + "0001.png"), process.stdout[-2000:])
-        image = bpy.data.images.load(output + "0001.png")
-        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        self.assertEqual(tuple(image.size), (64, 48))
+        pixels = st.load_image(output + "0001.png")
+        self.assertEqual(pixels.shape, (48, 64, 4))
         # The splats cover the centre; the corners show the world colour.
-        rgb = pixels.reshape(48, 64, 4)[..., :3]
+        rgb = pixels[..., :3]
         self.assertGreater(np.abs(rgb[20:28, 28:36] - rgb[0, 0]).mean(), 0.05)
 
     def test_empty_scene_renders_the_world(self):
         scene = new_scene(width=32, height=24, samples=1)
         scene.world.color = (0.2, 0.3, 0.4)
         add_camera((0, 0, 0), (0, 1, 0))
-        image = render_to_array("empty")
+        image = st.render_to_array("empty")
         np.testing.assert_allclose(image[..., :3].reshape(-1, 3).mean(axis=0), (0.2, 0.3, 0.4), atol=1e-4)
 
     def test_scene_without_camera_is_a_clear_error(self):
