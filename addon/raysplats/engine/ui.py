@@ -59,17 +59,14 @@ class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
         column.prop(context.scene.raysplats, "caustics_refractive", text="Refractive")
 
 
-class RAYSPLATS_CAMERA_PT_panorama(bpy.types.Panel):
+class RAYSPLATS_CAMERA_PT_panorama(RaySplatsPanel, bpy.types.Panel):
     bl_label = "Panorama (RaySplats)"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "data"
-    COMPAT_ENGINES = {ENGINE}
 
     @classmethod
     def poll(cls, context):
         camera = context.camera
-        return (context.engine == ENGINE and camera is not None and camera.type == "PANO"
+        return (super().poll(context) and camera is not None and camera.type == "PANO"
                 and not hasattr(camera, "panorama_type"))  # Blender 4 shows its own settings
 
     def draw(self, context):
