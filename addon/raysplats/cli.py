@@ -20,6 +20,7 @@
 # to a temporary file and renamed, so nothing is half-written. Exit status: 0 all done, 1 some file failed,
 # 2 bad command line.
 import argparse
+import contextlib
 import glob
 import os
 import sys
@@ -116,9 +117,18 @@ def _output_path(args, source, extension, count):
     return os.path.join(output, os.path.splitext(os.path.basename(source))[0] + extension)
 
 
-def _temporary(path):
+@contextlib.contextmanager
+def _atomic_output(path):
+    """Yields a temporary path beside `path`; renames it over `path` if the block succeeds, removes it
+    otherwise, so a failed command never leaves a half-written output."""
     stem, extension = os.path.splitext(path)
-    return f"{stem}.tmp{os.getpid()}{extension}"
+    temporary = f"{stem}.tmp{os.getpid()}{extension}"
+    try:
+        yield temporary
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.remove(temporary)
 
 
 def _import_splats(source, args):
@@ -149,13 +159,8 @@ def _do_import(source, target, args):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     ensure_addon()
     obj = _import_splats(source, args)
-    temporary = _temporary(target)
-    try:
+    with _atomic_output(target) as temporary:
         bpy.ops.wm.save_as_mainfile(filepath=temporary, copy=True, compress=False)
-        os.replace(temporary, target)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
     return f"{len(obj.data.polygons):,} Gaussians"
 
 
@@ -226,17 +231,12 @@ def _do_render(source, target, args):
     if scene.camera is None:
         frame_camera(scene)
     engine = setup_render(scene, args.resolution, args.samples)
-    temporary = _temporary(target)
-    scene.render.filepath = temporary
     scene.render.use_file_extension = False
-    try:
+    with _atomic_output(target) as temporary:
+        scene.render.filepath = temporary
         bpy.ops.render.render(write_still=True)
         if not os.path.exists(temporary):
             raise RuntimeError(f"{engine} wrote no image")
-        os.replace(temporary, target)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
     return f"{engine}, {args.resolution[0]}x{args.resolution[1]}"
 
 
