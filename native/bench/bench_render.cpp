@@ -219,6 +219,7 @@ int main(int argc, char** argv) {
         st.max_bounces = 0;
         st.jitter = false;
         st.transparent_background = true;
+        if (const char* k = std::getenv("RAYSPLATS_BENCH_K")) st.gather_buffer_size = std::atoi(k);
         const double rays = double(width) * height;
 
         auto run = [&](const GaussianCloud& c, Compositing comp, GaussianMode mode, double& build, bool print) {

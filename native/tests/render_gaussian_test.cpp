@@ -211,7 +211,7 @@ TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
         cam.camera_to_world = Matrix4::look_at({0.3f, -0.4f, 4.0f}, {0, 0, 0}, {0, 1, 0});
         cam.focal_length_mm = 35.0f;
         for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
-        for (int k : {3, 48}) {
+        for (int k : {3, 48, 128}) {
             RenderSettings s = exact_settings(48, 40, mode);
             s.gather_buffer_size = k;
             const Film film = render(scene, cam, s);

@@ -96,7 +96,7 @@ struct GatherHit {
     std::uint32_t prim;
 };
 
-constexpr int kGatherCapacity = 64;  // upper bound of RenderSettings::gather_buffer_size
+constexpr int kGatherCapacity = 128;  // upper bound of RenderSettings::gather_buffer_size
 
 // Per-ray state of a traversal.
 struct LaneState {

@@ -36,8 +36,8 @@ void RenderSettings::validate() const {
     require(max_bounces >= 0 && max_bounces <= 1024, "max bounces must be in 0 .. 1024 (got " + std::to_string(max_bounces) + ")");
     require(std::isfinite(transmittance_threshold) && transmittance_threshold >= 0.0f && transmittance_threshold < 1.0f,
             "transmittance threshold must be in [0, 1)");
-    require(gather_buffer_size >= 1 && gather_buffer_size <= 64,
-            "gather buffer size must be in 1 .. 64 (got " + std::to_string(gather_buffer_size) + ")");
+    require(gather_buffer_size >= 1 && gather_buffer_size <= 128,
+            "gather buffer size must be in 1 .. 128 (got " + std::to_string(gather_buffer_size) + ")");
     require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
 }
 
