@@ -59,27 +59,35 @@ void Material::validate(const char* what) const {
         require(base_color_texture.width > 0 && base_color_texture.height > 0, what, "texture size must be > 0");
         const int c = base_color_texture.channels;
         require(c == 1 || c == 3 || c == 4, what, "texture channels must be 1, 3 or 4");
+        const std::size_t n = std::size_t(base_color_texture.width) * std::size_t(base_color_texture.height) * std::size_t(c);
+        for (std::size_t i = 0; i < n; ++i)
+            if (!std::isfinite(base_color_texture.pixels[i]))
+                require(false, what, "texture texel " + std::to_string(i / std::size_t(c)) + " has a NaN or Inf value");
     }
 }
 
 glm::vec3 material_base_color(const Material& m, const glm::vec2& uv) {
     const ImageTexture& tex = m.base_color_texture;
     if (!tex.pixels) return {m.base_color[0], m.base_color[1], m.base_color[2]};
-    // Bilinear, repeat wrap, texel centres at (i + 0.5) / width.
+    // The texture replaces the base colour, as a link into Blender's Base Color socket replaces its value.
+    // Bilinear with texel centres at (i + 0.5) / width, the lookup of Blender's Image Texture node with
+    // interpolation "Linear" (Cycles kernel_tex_image_interp, INTERPOLATION_LINEAR); "Closest" is drawn bilinear
+    // too. Wrapping is "Repeat" (EXTENSION_REPEAT, the node's default): u and u + 1 look up the same texel.
     const float x = uv.x * tex.width - 0.5f, y = uv.y * tex.height - 0.5f;
     const float fx = std::floor(x), fy = std::floor(y);
     const float tx = x - fx, ty = y - fy;
     auto wrap = [](long i, int n) { long r = i % n; return int(r < 0 ? r + n : r); };
     auto texel = [&](long i, long j) {
         const float* p = tex.pixels + (std::size_t(wrap(j, tex.height)) * tex.width + wrap(i, tex.width)) * tex.channels;
-        glm::vec3 c = tex.channels == 1 ? glm::vec3(p[0]) : glm::vec3(p[0], p[1], p[2]);
-        if (tex.srgb) c = glm::vec3(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z));
-        return c;
+        return tex.channels == 1 ? glm::vec3(p[0]) : glm::vec3(p[0], p[1], p[2]);
     };
     const long i = long(fx), j = long(fy);
-    const glm::vec3 c = (1 - tx) * (1 - ty) * texel(i, j) + tx * (1 - ty) * texel(i + 1, j) +
-                        (1 - tx) * ty * texel(i, j + 1) + tx * ty * texel(i + 1, j + 1);
-    return c * glm::vec3(m.base_color[0], m.base_color[1], m.base_color[2]) / 1.0f;
+    glm::vec3 c = (1 - tx) * (1 - ty) * texel(i, j) + tx * (1 - ty) * texel(i + 1, j) +
+                  (1 - tx) * ty * texel(i, j + 1) + tx * ty * texel(i + 1, j + 1);
+    // sRGB is decoded after filtering, as Cycles does for 8-bit sRGB images (svm_image_texture with
+    // NODE_IMAGE_COMPRESS_AS_SRGB: kernel_tex_image_interp, then color_srgb_to_linear_v4).
+    if (tex.srgb) c = glm::vec3(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z));
+    return c;
 }
 
 float fresnel_dielectric(float cos_i, float eta, float& cos_t) {

@@ -12,7 +12,7 @@ struct ImageTexture {
     int width = 0;
     int height = 0;
     int channels = 4;   // 1, 3 or 4 (RGBA; alpha ignored)
-    bool srgb = false;  // convert from display sRGB to linear on lookup
+    bool srgb = false;  // sRGB-encoded (an 8-bit sRGB image): decoded to linear after bilinear filtering
 };
 
 // Diffuse lobe of a material.
@@ -26,7 +26,8 @@ enum class DiffuseModel {
 
 struct Material {
     std::array<float, 3> base_color{0.8f, 0.8f, 0.8f};  // linear RGB
-    ImageTexture base_color_texture;                    // used when pixels != nullptr, sampled bilinearly at the UVs
+    // When pixels != nullptr the texture replaces base_color: sampled bilinearly at the mesh UVs, wrapping (repeat).
+    ImageTexture base_color_texture;
     float metallic = 0.0f;
     float roughness = 0.5f;      // GGX alpha = roughness^2; below 0.02 the lobes are perfectly specular
     // Dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled). The specular layer (metal and
