@@ -73,7 +73,9 @@ struct RenderScene {
     std::uint32_t add_material(const py::sequence& base_color, float metallic, float roughness, float specular,
                                float transmission, float ior, const py::sequence& emission_color,
                                float emission_strength, float alpha, const std::string& diffuse_model,
-                               const std::optional<FloatArray>& base_color_texture, bool texture_srgb) {
+                               const std::optional<FloatArray>& base_color_texture, bool texture_srgb,
+                               const std::string& principled_version, const py::sequence& specular_tint,
+                               bool multiscatter) {
         raysplats::Material m;
         m.base_color = rgb_from(base_color, "base_color");
         m.metallic = metallic, m.roughness = roughness, m.specular = specular;
@@ -83,6 +85,11 @@ struct RenderScene {
         m.diffuse_model = enum_from<raysplats::DiffuseModel>(
             diffuse_model, {{"LAMBERT", raysplats::DiffuseModel::Lambert}, {"PRINCIPLED", raysplats::DiffuseModel::Principled}},
             "diffuse model");
+        m.principled_version = enum_from<raysplats::PrincipledVersion>(
+            principled_version, {{"V1", raysplats::PrincipledVersion::V1}, {"V2", raysplats::PrincipledVersion::V2}},
+            "Principled version");
+        m.specular_tint = rgb_from(specular_tint, "specular_tint");
+        m.multiscatter = multiscatter;
         if (base_color_texture) {
             // H x W x C (or H x W for one channel), row 0 = bottom as Blender's Image.pixels.
             const FloatArray& t = *base_color_texture;
@@ -325,7 +332,8 @@ void register_render_bindings(py::module_& m) {
              "metallic"_a = 0.0f, "roughness"_a = 0.5f, "specular"_a = 0.5f, "transmission"_a = 0.0f,
              "ior"_a = 1.45f, "emission_color"_a = std::vector<float>{0, 0, 0}, "emission_strength"_a = 1.0f,
              "alpha"_a = 1.0f, "diffuse_model"_a = "LAMBERT", "base_color_texture"_a = py::none(),
-             "texture_srgb"_a = false)
+             "texture_srgb"_a = false, "principled_version"_a = "V1",
+             "specular_tint"_a = std::vector<float>{1.0f, 1.0f, 1.0f}, "multiscatter"_a = false)
         .def("add_mesh", &RenderScene::add_mesh, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
              "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none())
         .def("add_gaussians", &RenderScene::add_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,

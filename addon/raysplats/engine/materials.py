@@ -13,8 +13,13 @@ import bpy
 import numpy as np
 
 # Cycles' Principled BSDF v1 (Blender 2.8-3.x) has the principled (Disney) diffuse with roughness-dependent
-# retro-reflection; v2 (Blender 4.x) a Lambertian diffuse.
-PRINCIPLED_DIFFUSE = "PRINCIPLED" if bpy.app.version < (4, 0, 0) else "LAMBERT"
+# retro-reflection; v2 (Blender 4.x) a Lambertian diffuse under an energy-conserving dielectric specular layer, F82-tint
+# metal and Specular IOR Level / Specular Tint inputs (native/src/render/bsdf.h models both).
+PRINCIPLED_VERSION = "V1" if bpy.app.version < (4, 0, 0) else "V2"
+PRINCIPLED_DIFFUSE = "PRINCIPLED" if PRINCIPLED_VERSION == "V1" else "LAMBERT"
+# Principled lobes RaySplats leaves out, by the inputs that switch them on (names of Blender 3.x and 4.x).
+_UNSUPPORTED_LAYERS = {"V1": ("Subsurface", "Sheen", "Clearcoat"),
+                       "V2": ("Subsurface Weight", "Sheen Weight", "Coat Weight", "Thin Film Thickness")}
 
 
 def find_input(node, *names):
@@ -54,7 +59,8 @@ def _linked_from(socket):
 # Byte images in these colour spaces hold sRGB-encoded values (Cycles decodes them after filtering, svm/image.h
 # NODE_IMAGE_COMPRESS_AS_SRGB); those in the data spaces hold values used as they are.
 _SRGB_SPACES = {"sRGB"}
-_RAW_SPACES = {"Non-Color", "Raw", "Linear", "Linear Rec.709", "Linear CIE-XYZ E", "Linear CIE-XYZ D65", "Utility - Raw"}
+_RAW_SPACES = {"Non-Color", "Raw", "Linear", "Linear Rec.709", "Linear CIE-XYZ E", "Linear CIE-XYZ D65",
+               "Utility - Raw"}
 
 
 class ImageCache:
@@ -178,6 +184,11 @@ class MaterialTable:
             if linked:
                 self.warn(f"Material '{material.name}': textures or node inputs on {', '.join(linked)} are not "
                           "supported yet; their unconnected values are used")
+            left_out = [name for name in _UNSUPPORTED_LAYERS[PRINCIPLED_VERSION]
+                        if find_input(node, name) is not None and
+                        (find_input(node, name).is_linked or input_value(node, 0.0, name) > 0.0)]
+            if left_out:
+                self.warn(f"Material '{material.name}': {', '.join(left_out)} is not supported; rendered without it")
             specular = input_value(node, 0.5, "Specular", "Specular IOR Level")
             kwargs = {
                 "base_color": input_value(node, (0.8, 0.8, 0.8), "Base Color"),
@@ -191,6 +202,11 @@ class MaterialTable:
                 "alpha": input_value(node, 1.0, "Alpha"),
                 "diffuse_model": PRINCIPLED_DIFFUSE,
             }
+            if PRINCIPLED_VERSION == "V2":
+                # Specular IOR Level has no upper bound in v2 (F0 = F0(IOR) * 2 * level, clamped to 0.99 natively).
+                kwargs.update(principled_version="V2", specular=max(0.0, specular),
+                              specular_tint=input_value(node, (1.0, 1.0, 1.0), "Specular Tint"),
+                              multiscatter=node.distribution == "MULTI_GGX")
         elif kind == "ShaderNodeBsdfDiffuse":
             texture = self._texture(material, node.inputs["Color"])
             kwargs = {"base_color": input_value(node, (0.8, 0.8, 0.8), "Color"), "roughness": 1.0, "specular": 0.0}
@@ -199,7 +215,8 @@ class MaterialTable:
                     "roughness": input_value(node, 0.5, "Roughness")}, None
         elif kind == "ShaderNodeBsdfGlass":
             return {"base_color": input_value(node, (1.0, 1.0, 1.0), "Color"), "transmission": 1.0,
-                    "roughness": input_value(node, 0.0, "Roughness"), "ior": max(1.0, input_value(node, 1.45, "IOR"))}, None
+                    "roughness": input_value(node, 0.0, "Roughness"),
+                    "ior": max(1.0, input_value(node, 1.45, "IOR"))}, None
         elif kind == "ShaderNodeEmission":
             return {"base_color": (0.0, 0.0, 0.0), "specular": 0.0,
                     "emission_color": input_value(node, (1.0, 1.0, 1.0), "Color"),

@@ -1,10 +1,18 @@
 # Depsgraph -> native RenderScene: meshes (modifiers applied, instances included), Gaussian objects recovered
 # from their evaluated meshes, materials (materials.py), lights in Blender units, the world and the camera.
 
+import math
+
+import bpy
 import numpy as np
 
 from .. import gaussian_mesh, native
 from .materials import MaterialTable, input_value
+
+
+# The native area light emits radiance P / (4 A), Cycles 3.x's convention (kernel/light/area.h: eval_fac =
+# 0.25 * invarea). Cycles 4.x emits P / (pi A) (eval_fac = M_1_PI_F * invarea), so the same power is 4 / pi brighter.
+AREA_POWER_SCALE = 1.0 if bpy.app.version < (4, 0, 0) else 4.0 / math.pi
 
 
 def _light_kwargs(light, matrix):
@@ -18,7 +26,8 @@ def _light_kwargs(light, matrix):
     if light.type == "AREA":
         shape = "AREA_DISK" if light.shape in ("DISK", "ELLIPSE") else "AREA_RECTANGLE"
         size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
-        return dict(common, type=shape, size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
+        return dict(common, type=shape, power=float(light.energy) * AREA_POWER_SCALE,
+                    size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
     return dict(common, type="POINT")
 
 
