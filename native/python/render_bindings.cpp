@@ -72,7 +72,10 @@ struct RenderScene {
 
     std::uint32_t add_material(const py::sequence& base_color, float metallic, float roughness, float specular,
                                float transmission, float ior, const py::sequence& emission_color,
-                               float emission_strength, float alpha, const std::string& diffuse_model) {
+                               float emission_strength, float alpha, const std::string& diffuse_model,
+                               const std::optional<FloatArray>& base_color_texture, bool texture_srgb,
+                               const std::string& principled_version, const py::sequence& specular_tint,
+                               bool multiscatter) {
         raysplats::Material m;
         m.base_color = rgb_from(base_color, "base_color");
         m.metallic = metallic, m.roughness = roughness, m.specular = specular;
@@ -82,12 +85,31 @@ struct RenderScene {
         m.diffuse_model = enum_from<raysplats::DiffuseModel>(
             diffuse_model, {{"LAMBERT", raysplats::DiffuseModel::Lambert}, {"PRINCIPLED", raysplats::DiffuseModel::Principled}},
             "diffuse model");
-        return scene.add_material(m);
+        m.principled_version = enum_from<raysplats::PrincipledVersion>(
+            principled_version, {{"V1", raysplats::PrincipledVersion::V1}, {"V2", raysplats::PrincipledVersion::V2}},
+            "Principled version");
+        m.specular_tint = rgb_from(specular_tint, "specular_tint");
+        m.multiscatter = multiscatter;
+        if (base_color_texture) {
+            // H x W x C (or H x W for one channel), row 0 = bottom as Blender's Image.pixels.
+            const FloatArray& t = *base_color_texture;
+            const int channels = t.ndim() == 2 ? 1 : t.ndim() == 3 ? int(t.shape(2)) : 0;
+            if (channels != 1 && channels != 3 && channels != 4)
+                throw raysplats::InvalidArgument("array 'base_color_texture' must be H x W x C with C = 1, 3 or 4");
+            m.base_color_texture.pixels = t.data();
+            m.base_color_texture.height = int(t.shape(0));
+            m.base_color_texture.width = int(t.shape(1));
+            m.base_color_texture.channels = channels;
+            m.base_color_texture.srgb = texture_srgb;
+        }
+        const std::uint32_t index = scene.add_material(m);
+        if (base_color_texture) keep_alive.push_back(*base_color_texture);
+        return index;
     }
 
     std::uint32_t add_mesh(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
                            std::uint32_t material, const std::optional<UintArray>& face_materials,
-                           const std::optional<FloatArray>& normals) {
+                           const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
         require_shape(vertices, "vertices", {-1, 3});
         require_shape(triangles, "triangles", {-1, 3});
         raysplats::MeshDesc d;
@@ -108,6 +130,11 @@ struct RenderScene {
             require_shape(*normals, "normals", {vertices.shape(0), 3});
             d.normals = normals->data();
             keep_alive.push_back(*normals);
+        }
+        if (uvs) {
+            require_shape(*uvs, "uvs", {vertices.shape(0), 2});
+            d.uvs = uvs->data();
+            keep_alive.push_back(*uvs);
         }
         return scene.add_mesh(d);
     }
@@ -304,9 +331,11 @@ void register_render_bindings(py::module_& m) {
         .def("add_material", &RenderScene::add_material, "base_color"_a = std::vector<float>{0.8f, 0.8f, 0.8f},
              "metallic"_a = 0.0f, "roughness"_a = 0.5f, "specular"_a = 0.5f, "transmission"_a = 0.0f,
              "ior"_a = 1.45f, "emission_color"_a = std::vector<float>{0, 0, 0}, "emission_strength"_a = 1.0f,
-             "alpha"_a = 1.0f, "diffuse_model"_a = "LAMBERT")
+             "alpha"_a = 1.0f, "diffuse_model"_a = "LAMBERT", "base_color_texture"_a = py::none(),
+             "texture_srgb"_a = false, "principled_version"_a = "V1",
+             "specular_tint"_a = std::vector<float>{1.0f, 1.0f, 1.0f}, "multiscatter"_a = false)
         .def("add_mesh", &RenderScene::add_mesh, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
-             "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none())
+             "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none())
         .def("add_gaussians", &RenderScene::add_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
              "sh"_a, "matrix"_a = py::none())
         .def("add_light", &RenderScene::add_light, "type"_a, "color"_a, "power"_a, "matrix"_a,

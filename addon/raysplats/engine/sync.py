@@ -1,98 +1,18 @@
 # Depsgraph -> native RenderScene: meshes (modifiers applied, instances included), Gaussian objects recovered
-# from their evaluated meshes, Principled materials, lights in Blender units, the world and the camera.
+# from their evaluated meshes, materials (materials.py), lights in Blender units, the world and the camera.
+
+import math
 
 import bpy
 import numpy as np
 
 from .. import gaussian_mesh, native
-
-# Cycles' Principled BSDF v1 (Blender 2.8-3.x) has the principled (Disney) diffuse with roughness-dependent
-# retro-reflection; v2 (Blender 4.x) a Lambertian diffuse.
-PRINCIPLED_DIFFUSE = "PRINCIPLED" if bpy.app.version < (4, 0, 0) else "LAMBERT"
+from .materials import MaterialTable, input_value
 
 
-def _input(node, *names):
-    """The first of the named inputs a node has (Blender 4 renamed several Principled inputs)."""
-    for name in names:
-        socket = node.inputs.get(name)
-        if socket is not None:
-            return socket
-    return None
-
-
-def _value(node, default, *names):
-    socket = _input(node, *names)
-    if socket is None:
-        return default
-    value = socket.default_value
-    try:
-        return tuple(value)[:3]
-    except TypeError:
-        return float(value)
-
-
-class MaterialTable:
-    """Blender materials -> native material indices, converted once each."""
-
-    def __init__(self, render_scene, warn):
-        self.render_scene = render_scene
-        self.warn = warn
-        self.indices = {}
-        self.default = render_scene.add_material()
-
-    def index(self, material):
-        if material is None:
-            return self.default
-        key = material.name_full
-        if key not in self.indices:
-            self.indices[key] = self.render_scene.add_material(**self._convert(material))
-        return self.indices[key]
-
-    def _convert(self, material):
-        fallback = {"base_color": tuple(material.diffuse_color)[:3], "metallic": float(material.metallic),
-                    "roughness": float(material.roughness)}
-        if not material.use_nodes or material.node_tree is None:
-            return fallback
-        output = next((n for n in material.node_tree.nodes
-                       if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output), None)
-        surface = output.inputs["Surface"] if output else None
-        if surface is None or not surface.is_linked:
-            return fallback
-        node = surface.links[0].from_node
-        kind = node.bl_idname
-        if kind == "ShaderNodeBsdfPrincipled":
-            linked = [s.name for s in node.inputs if s.is_linked and s.name in
-                      ("Base Color", "Metallic", "Roughness", "Transmission", "Transmission Weight")]
-            if linked:
-                self.warn(f"Material '{material.name}': textures or node inputs on {', '.join(linked)} are not "
-                          "supported yet; their unconnected values are used")
-            specular = _value(node, 0.5, "Specular", "Specular IOR Level")
-            return {
-                "base_color": _value(node, (0.8, 0.8, 0.8), "Base Color"),
-                "metallic": _value(node, 0.0, "Metallic"),
-                "roughness": _value(node, 0.5, "Roughness"),
-                "specular": min(1.0, max(0.0, specular)),
-                "transmission": _value(node, 0.0, "Transmission Weight", "Transmission"),
-                "ior": max(1.0, _value(node, 1.45, "IOR")),
-                "emission_color": _value(node, (0.0, 0.0, 0.0), "Emission Color", "Emission"),
-                "emission_strength": _value(node, 1.0, "Emission Strength"),
-                "alpha": _value(node, 1.0, "Alpha"),
-                "diffuse_model": PRINCIPLED_DIFFUSE,
-            }
-        if kind == "ShaderNodeBsdfDiffuse":
-            return {"base_color": _value(node, (0.8, 0.8, 0.8), "Color"), "roughness": 1.0, "specular": 0.0}
-        if kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"):
-            return {"base_color": _value(node, (0.8, 0.8, 0.8), "Color"), "metallic": 1.0,
-                    "roughness": _value(node, 0.5, "Roughness")}
-        if kind == "ShaderNodeBsdfGlass":
-            return {"base_color": _value(node, (1.0, 1.0, 1.0), "Color"), "transmission": 1.0,
-                    "roughness": _value(node, 0.0, "Roughness"), "ior": max(1.0, _value(node, 1.45, "IOR"))}
-        if kind == "ShaderNodeEmission":
-            return {"base_color": (0.0, 0.0, 0.0), "specular": 0.0,
-                    "emission_color": _value(node, (1.0, 1.0, 1.0), "Color"),
-                    "emission_strength": _value(node, 1.0, "Strength")}
-        self.warn(f"Material '{material.name}': '{node.name}' is not a Principled BSDF; its viewport colour is used")
-        return fallback
+# The native area light emits radiance P / (4 A), Cycles 3.x's convention (kernel/light/area.h: eval_fac =
+# 0.25 * invarea). Cycles 4.x emits P / (pi A) (eval_fac = M_1_PI_F * invarea), so the same power is 4 / pi brighter.
+AREA_POWER_SCALE = 1.0 if bpy.app.version < (4, 0, 0) else 4.0 / math.pi
 
 
 def _light_kwargs(light, matrix):
@@ -106,7 +26,8 @@ def _light_kwargs(light, matrix):
     if light.type == "AREA":
         shape = "AREA_DISK" if light.shape in ("DISK", "ELLIPSE") else "AREA_RECTANGLE"
         size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
-        return dict(common, type=shape, size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
+        return dict(common, type=shape, power=float(light.energy) * AREA_POWER_SCALE,
+                    size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
     return dict(common, type="POINT")
 
 
@@ -120,7 +41,7 @@ def _world(scene):
         if output and output.inputs["Surface"].is_linked:
             node = output.inputs["Surface"].links[0].from_node
             if node.bl_idname == "ShaderNodeBackground":
-                return _value(node, (0.05, 0.05, 0.05), "Color"), _value(node, 1.0, "Strength")
+                return input_value(node, (0.05, 0.05, 0.05), "Color"), input_value(node, 1.0, "Strength")
     return tuple(world.color), 1.0
 
 
@@ -134,6 +55,29 @@ def triangle_mesh_arrays(mesh):
     slots = np.empty(len(mesh.loop_triangles), dtype=np.uint32)
     mesh.loop_triangles.foreach_get("material_index", slots)
     return vertices.reshape(-1, 3), triangles.reshape(-1, 3), slots
+
+
+def corner_mesh_arrays(mesh, uv_map):
+    """Like triangle_mesh_arrays, with one vertex per loop-triangle corner so that each carries its own UV.
+
+    Blender stores UVs per loop (face corner) while the renderer's UVs are per vertex: a vertex on a UV seam
+    has several. Unsharing the vertices (3 per triangle) gives every corner its loop's UV. Returns
+    (vertices, triangles, slots, uvs, uv_layer_name); uvs is None when the mesh has no such UV map."""
+    vertices, corner_vertices, slots = triangle_mesh_arrays(mesh)
+    layer = mesh.uv_layers.get(uv_map) if uv_map else None
+    if layer is None:
+        # The default UV map of a texture is the one marked for rendering (Cycles' ATTR_STD_UV).
+        layer = next((uv for uv in mesh.uv_layers if uv.active_render), None) or mesh.uv_layers.active
+    corners = corner_vertices.ravel()
+    vertices = vertices[corners]
+    triangles = np.arange(len(corners), dtype=np.uint32).reshape(-1, 3)
+    if layer is None:
+        return vertices, triangles, slots, None, None
+    loops = np.empty(len(corners), dtype=np.uint32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    loop_uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+    layer.data.foreach_get("uv", loop_uvs)
+    return vertices, triangles, slots, loop_uvs.reshape(-1, 2)[loops], layer.name
 
 
 class SceneStats:
@@ -171,26 +115,39 @@ def build_render_scene(depsgraph, warn=None):
                                            cloud["opacities"], cloud["sh"])
                 stats.splats += len(cloud["opacities"])
         elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
+            slot_materials = [slot.material for slot in obj.material_slots]
+            material_indices = np.array([materials.index(m) for m in slot_materials] or [materials.default],
+                                        dtype=np.uint32)
+            # A mesh with a textured material needs per-corner UVs (corner_mesh_arrays); the others keep the
+            # shared vertices, which are cheaper. The first textured slot chooses the UV map.
+            uv_map = next((m for m in map(materials.uv_map, slot_materials) if m is not None), None)
             # Instances of one mesh (collection, particle, Geometry Nodes instances) share its arrays.
-            key = obj.data.as_pointer() if obj.type == "MESH" else None
+            key = (obj.data.as_pointer(), uv_map) if obj.type == "MESH" else None
             arrays = mesh_cache.get(key) if key else None
             if arrays is None:
                 mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
                 try:
-                    arrays = triangle_mesh_arrays(mesh)
+                    if uv_map is None:
+                        arrays = triangle_mesh_arrays(mesh) + (None,)
+                    else:
+                        vertices, triangles, slots, uvs, layer = corner_mesh_arrays(mesh, uv_map)
+                        arrays = vertices, triangles, slots, uvs
+                        if layer is None:
+                            warn_once(f"Mesh '{mesh.name}' has no UV map but a textured material; the texture is "
+                                      "looked up at UV (0, 0)")
+                        elif uv_map and layer != uv_map:
+                            warn_once(f"Mesh '{mesh.name}' has no UV map '{uv_map}'; '{layer}' is used")
                 finally:
                     if obj.type != "MESH":
                         obj.to_mesh_clear()
                 if key:
                     mesh_cache[key] = arrays
-            vertices, triangles, slots = arrays
+            vertices, triangles, slots, uvs = arrays
             if not len(triangles):
                 continue
-            slot_materials = np.array([materials.index(slot.material) for slot in obj.material_slots]
-                                      or [materials.default], dtype=np.uint32)
-            face_materials = slot_materials[np.minimum(slots, len(slot_materials) - 1)]
+            face_materials = material_indices[np.minimum(slots, len(material_indices) - 1)]
             render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                  face_materials=face_materials)
+                                  face_materials=face_materials, uvs=uvs)
             stats.triangles += len(triangles)
         elif obj.type == "LIGHT":
             render_scene.add_light(**_light_kwargs(obj.data, matrix))

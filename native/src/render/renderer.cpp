@@ -451,7 +451,7 @@ public:
                 filter.reflective = st_.caustics_reflective;
                 filter.refractive = st_.caustics_refractive;
             }
-            const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, entering, filter);
+            const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, wo, entering, filter);
             if (bsdf.absorbs()) break;
             const glm::vec3 p_out = sf.p + ng * eps;
             if (bsdf.has_non_delta()) {

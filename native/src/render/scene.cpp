@@ -6,6 +6,7 @@
 #include <cmath>
 #include <string>
 
+#include "microfacet_tables.h"
 #include "raysplats/errors.h"
 #include "render_math.h"
 #include "scene_impl.h"
@@ -53,6 +54,8 @@ Scene::~Scene() {
 
 std::uint32_t Scene::add_material(const Material& material) {
     material.validate(("material " + std::to_string(impl_->materials.size())).c_str());
+    // Principled v2 reads the GGX albedo tables: build them now rather than inside the first render.
+    if (material.principled_version == PrincipledVersion::V2) microfacet_tables();
     impl_->materials.push_back(material);
     impl_->built = false;
     return std::uint32_t(impl_->materials.size() - 1);

@@ -1,4 +1,4 @@
-// A Principled-BSDF-like material (Blender 3.x Principled subset) for meshes (DESIGN §6).
+// A Principled-BSDF-like material (Blender 3.x Principled v1 or 4.x Principled v2 subset) for meshes (DESIGN §6).
 #pragma once
 
 #include <array>
@@ -12,7 +12,7 @@ struct ImageTexture {
     int width = 0;
     int height = 0;
     int channels = 4;   // 1, 3 or 4 (RGBA; alpha ignored)
-    bool srgb = false;  // convert from display sRGB to linear on lookup
+    bool srgb = false;  // sRGB-encoded (an 8-bit sRGB image): decoded to linear after bilinear filtering
 };
 
 // Diffuse lobe of a material.
@@ -24,15 +24,29 @@ enum class DiffuseModel {
     Principled,
 };
 
+// Which Cycles Principled BSDF the material follows (bsdf.h says what each models).
+enum class PrincipledVersion {
+    V1,  // Blender 2.8-3.x: one specular layer with interpolated Fresnel, F0 = 0.08 * specular
+    // Blender 4.x (Cycles svm/closure.h, CLOSURE_BSDF_PRINCIPLED_ID): F82-tint metal, a dielectric specular layer with
+    // real Fresnel from the IOR (scaled by "Specular IOR Level") over the diffuse base, energy-conserving layering,
+    // glass transmission tinted by sqrt(base colour), optional multiple-scattering GGX energy compensation.
+    V2,
+};
+
 struct Material {
     std::array<float, 3> base_color{0.8f, 0.8f, 0.8f};  // linear RGB
-    ImageTexture base_color_texture;                    // used when pixels != nullptr, sampled bilinearly at the UVs
+    // When pixels != nullptr the texture replaces base_color: sampled bilinearly at the mesh UVs, wrapping (repeat).
+    ImageTexture base_color_texture;
     float metallic = 0.0f;
     float roughness = 0.5f;      // GGX alpha = roughness^2; below 0.02 the lobes are perfectly specular
-    // Dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled). The specular layer (metal and
+    // V1: dielectric reflectance F0 = 0.08 * specular (Blender 3.x Principled). The specular layer (metal and
     // dielectric in one, as Cycles 3.x does) has F0 colour cspec0 = lerp(0.08 * specular, base, metallic) and the
     // Fresnel of Cycles' interpolate_fresnel_color: cspec0 + (1 - cspec0) * normalised dielectric Fresnel.
+    // V2: "Specular IOR Level" (>= 0, 0.5 = the IOR's own reflectance): dielectric F0 = F0(ior) * 2 * specular.
     float specular = 0.5f;
+    PrincipledVersion principled_version = PrincipledVersion::V1;
+    std::array<float, 3> specular_tint{1.0f, 1.0f, 1.0f};  // V2: tints dielectric F0 and is the metals' F82 tint
+    bool multiscatter = false;  // V2: "Multiscatter GGX" (energy compensation of the GGX lobes) instead of "GGX"
     DiffuseModel diffuse_model = DiffuseModel::Lambert;
     float transmission = 0.0f;   // weight of the glass lobe
     float ior = 1.45f;
