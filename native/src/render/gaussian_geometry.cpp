@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <atomic>
+#include <cstring>
 #include <limits>
 
 #include <tbb/parallel_for.h>
@@ -18,8 +20,9 @@ bool hit_before(float t, std::uint64_t key, const GatherHit& h) {
 }
 
 void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
-    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
-    const GaussianPrimitive& g = set->prims[args->primID];
+    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
+    const GaussianSet* set = chunk->set;
+    const GaussianPrimitive& g = set->prims[chunk->offset + args->primID];
     // Columns of M^-1 (M = rows 0..2) are the world-space axes scaled by the standard deviations; for flat
     // Gaussians columns 0 and 1 span the disk (row 2 is orthogonal to both by construction).
     glm::mat3 m;
@@ -60,8 +63,11 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
 void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (ctx->mode == TraceMode::MeshesOnly) return;
-    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
-    const GaussianPrimitive& g = set->prims[args->primID];
+    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
+    const GaussianSet* set = chunk->set;
+    const GaussianPrimitive& g = set->prims[chunk->offset + args->primID];
+    // Hits are identified by (top-level instance = chunk, primID in the chunk); rays arrive in object space.
+    const std::uint32_t geom_id = args->context->instID[0];
     const unsigned n = args->N;
     RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
     RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
@@ -79,7 +85,7 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
         if (alpha < kMinAlpha) continue;
 
         if (ctx->mode == TraceMode::Gather) {
-            const std::uint64_t key = gather_key(args->geomID, args->primID);
+            const std::uint64_t key = gather_key(geom_id, args->primID);
             if (L.has_after && (t < L.after_t || (t == L.after_t && key <= L.after_key))) continue;
             int pos;
             const int k = L.capacity;
@@ -94,7 +100,7 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
                 L.hits[pos] = L.hits[pos - 1];
                 --pos;
             }
-            L.hits[pos] = GatherHit{t, alpha, args->geomID, args->primID};
+            L.hits[pos] = GatherHit{t, alpha, geom_id, args->primID};
             L.product *= 1.0f - alpha;
             int cut = -1;
             if (L.base_transmittance * L.product < L.transmittance_threshold) {
@@ -125,10 +131,10 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
             }
         } else if (ctx->mode == TraceMode::Stochastic) {
             // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
-            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(args->geomID, args->primID)));
+            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(geom_id, args->primID)));
             if (u >= alpha) continue;
             tfar = t;
-            const glm::vec3 nrm = set->flat ? g.row2 : -d;
+            const glm::vec3 nrm = set->flat ? g.row2 : -d;  // object space; the renderer uses world normals
             RTCHitN_Ng_x(hit, n, i) = nrm.x;
             RTCHitN_Ng_y(hit, n, i) = nrm.y;
             RTCHitN_Ng_z(hit, n, i) = nrm.z;
@@ -147,9 +153,10 @@ void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (args->N != 1 || !args->valid[0] || ctx->mode != TraceMode::Transmittance) return;
     LaneState& L = ctx->lanes[0];
-    const auto* set = static_cast<const GaussianSet*>(args->geometryUserPtr);
+    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
+    const GaussianSet* set = chunk->set;
     RTCRay* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const GaussianPrimitive& g = set->prims[args->primID];
+    const GaussianPrimitive& g = set->prims[chunk->offset + args->primID];
     const glm::vec3 o(ray->org_x, ray->org_y, ray->org_z);
     const glm::vec3 d(ray->dir_x, ray->dir_y, ray->dir_z);
     float t, dist2;
@@ -166,18 +173,28 @@ void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
 
 }  // namespace
 
-void GaussianSet::prepare(GaussianMode mode) {
+void GaussianSet::set_transform(const Matrix4& m) {
+    object_to_world = m;
+    linear = linear_part(m);
+    translation = translation_part(m);
+    world_to_object_dir = glm::inverse(linear);
+    normal_matrix = glm::transpose(world_to_object_dir);
+}
+
+std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
+    const bool was_flat = flat;
     flat = mode == GaussianMode::Flat;
     const GaussianCloud& c = *cloud;
     const std::size_t n = c.size();
+    keep_order = keep_order && cloud_index.size() == n && was_flat == flat;
+    const std::size_t chunk_count = (n + std::size_t(chunk_size) - 1) / std::size_t(chunk_size);
+    std::vector<std::atomic<bool>> chunk_changed(chunk_count);
+    for (auto& f : chunk_changed) f = !keep_order;
     prims.resize(n);
-    const glm::mat3 a = linear_part(object_to_world);
-    const glm::mat3 a_inv = glm::inverse(a);
-    const glm::mat3 a_inv_t = glm::transpose(a_inv);
-    const glm::vec3 b = translation_part(object_to_world);
-    world_to_object_dir = a_inv;
     const bool deg0 = c.sh_degree == 0;
     if (deg0) linear_rgb.resize(3 * n);
+    else linear_rgb.clear();
+    if (!keep_order) {
 
     // Morton order (10 bits per axis) of the object-space centres.
     glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
@@ -205,6 +222,7 @@ void GaussianSet::prepare(GaussianMode mode) {
     tbb::parallel_sort(keyed.begin(), keyed.end());
     cloud_index.resize(n);
     for (std::size_t j = 0; j < n; ++j) cloud_index[j] = std::uint32_t(keyed[j] & 0xffffffffu);
+    }
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
@@ -225,14 +243,16 @@ void GaussianSet::prepare(GaussianMode mode) {
             std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
             const float smax = std::max(s[order[0]], 1e-30f);
             auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
-            GaussianPrimitive& g = prims[j];
-            g.center = a * glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]) + b;
+            GaussianPrimitive g;
+            g.center = glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
             g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
-            // row_world = A^-T row_object  (so that row_world . (x_world - m_world) = row_object . (x_obj - m_obj))
-            g.row0 = a_inv_t * (axis[order[0]] * inv_scale(order[0]));
-            g.row1 = a_inv_t * (axis[order[1]] * inv_scale(order[1]));
-            g.row2 = flat ? glm::normalize(a_inv_t * axis[order[2]]) : a_inv_t * (axis[order[2]] * inv_scale(order[2]));
+            g.row0 = axis[order[0]] * inv_scale(order[0]);
+            g.row1 = axis[order[1]] * inv_scale(order[1]);
+            g.row2 = flat ? axis[order[2]] : axis[order[2]] * inv_scale(order[2]);
             g.pad0 = g.pad1 = g.pad2 = 0.0f;
+            if (keep_order && std::memcmp(&g, &prims[j], sizeof(g)) != 0)
+                chunk_changed[j / std::size_t(chunk_size)].store(true, std::memory_order_relaxed);
+            prims[j] = g;
             if (deg0) {
                 for (int ch = 0; ch < 3; ++ch)
                     linear_rgb[3 * j + ch] =
@@ -240,12 +260,16 @@ void GaussianSet::prepare(GaussianMode mode) {
             }
         }
     });
+    std::vector<char> changed(chunk_count);
+    for (std::size_t k = 0; k < chunk_count; ++k) changed[k] = chunk_changed[k].load();
+    return changed;
 }
 
 glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
-    // Reference 3DGS: the SH are evaluated in the direction from the camera (ray origin) to the centre.
-    glm::vec3 dir = world_to_object_dir * (prims[i].center - origin);
+    // Reference 3DGS: the SH are evaluated in the direction from the camera (ray origin) to the centre, here in
+    // the cloud's frame: A^-1 (A c + b - o) = c - A^-1 (o - b).
+    glm::vec3 dir = prims[i].center - world_to_object_dir * (origin - translation);
     const float len = glm::length(dir);
     dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
     const int k = cloud->coeffs_per_channel();
@@ -253,11 +277,11 @@ glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
 
-RTCGeometry GaussianSet::create_geometry(RTCDevice device) {
+RTCGeometry GaussianSet::create_geometry(RTCDevice device, GaussianChunk& chunk) const {
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(geom, unsigned(prims.size()));
-    rtcSetGeometryUserData(geom, this);
-    rtcSetGeometryBoundsFunction(geom, gaussians_bounds, this);
+    rtcSetGeometryUserPrimitiveCount(geom, chunk.count);
+    rtcSetGeometryUserData(geom, &chunk);
+    rtcSetGeometryBoundsFunction(geom, gaussians_bounds, &chunk);
     rtcSetGeometryIntersectFunction(geom, gaussians_intersect);
     rtcSetGeometryOccludedFunction(geom, gaussians_occluded);
     rtcCommitGeometry(geom);

@@ -59,26 +59,50 @@ inline bool intersect_gaussian(const GaussianPrimitive& g, bool flat, const glm:
     return dist2 <= kGaussianSupportSq;
 }
 
-// One Gaussian cloud in the scene.
+// One Gaussian cloud in the scene. Primitives are in the cloud's own (object) frame and split into chunks of
+// consecutive primitives; each chunk is an Embree sub-scene instanced with the object-to-world matrix. So moving
+// the object only changes instance transforms, and an edit rebuilds only the chunks whose Gaussians changed
+// (Scene::update_gaussians). Rays reach the callbacks in object space (Embree keeps the ray parameter t).
+struct GaussianSet;
+struct GaussianChunk {
+    const GaussianSet* set = nullptr;
+    std::uint32_t offset = 0, count = 0;  // primitives [offset, offset + count) of the set
+    RTCScene scene = nullptr;
+    RTCGeometry geometry = nullptr;        // the user geometry inside `scene` (owned by it)
+    unsigned instance_id = RTC_INVALID_GEOMETRY_ID;  // geomID of the instance in the top-level scene
+};
+
 struct GaussianSet {
     const GaussianCloud* cloud = nullptr;
     Matrix4 object_to_world;
-    glm::mat3 world_to_object_dir{1.0f};  // A^-1: view directions into the frame of the SH coefficients
+    glm::mat3 linear{1.0f};               // A
+    glm::vec3 translation{0.0f};          // b
+    glm::mat3 world_to_object_dir{1.0f};  // A^-1: world points and view directions into the cloud's frame
+    glm::mat3 normal_matrix{1.0f};        // A^-T: object-space plane normals to world
     bool flat = true;
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
-    // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines.
+    // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
+    // chunks are compact in space.
     std::vector<GaussianPrimitive> prims;
     std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
     std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
-    std::uint32_t geom_id = RTC_INVALID_GEOMETRY_ID;
+    std::vector<GaussianChunk> chunks;
+    std::uint32_t chunk_size = 0xffffffffu;  // primitives per chunk (the last may have fewer)
 
-    // Computes prims (and colours) for the mode, in parallel.
-    void prepare(GaussianMode mode);
+    void set_transform(const Matrix4& m);
+    // Computes prims (and colours) for the mode, in parallel. `keep_order`: reuse cloud_index (same count as
+    // before), so that primitive i is the same Gaussian and unchanged chunks stay valid; returns a flag per chunk
+    // (of the current chunking) that is set when one of its primitives changed.
+    std::vector<char> prepare(GaussianMode mode, bool keep_order);
+    glm::vec3 world_center(std::uint32_t i) const { return linear * prims[i].center + translation; }
     // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
-    // Creates the Embree user geometry (bounds + intersect + occluded callbacks).
-    RTCGeometry create_geometry(RTCDevice device);
+    // World-space unit normal of a flat primitive.
+    glm::vec3 world_normal(std::uint32_t i) const { return glm::normalize(normal_matrix * prims[i].row2); }
+    // Creates the Embree user geometry of a chunk (bounds + intersect + occluded callbacks).
+    RTCGeometry create_geometry(RTCDevice device, GaussianChunk& chunk) const;
 };
+
 
 // What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
 // RTCIntersectContext (the Embree tutorials' pattern for extra per-ray data).

@@ -107,15 +107,17 @@ public:
     // Composites one Gaussian onto the segment (front to back).
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const {
-        const GaussianSet& set = *s_.gaussians[s_.top[geom].index];
+        const TopGeometry& tg = s_.top[geom];
+        const GaussianSet& set = *s_.gaussians[tg.index];
+        prim += tg.offset;  // chunk-local -> index in the set
         glm::vec3 color = set.color(prim, ray.o);
-        if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[prim].center, rng, c);
+        if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.world_center(prim), rng, c);
         const float t_before = seg.transmittance;
         seg.radiance += t_before * alpha * color;
         seg.transmittance = t_before * (1.0f - alpha);
         if (t_before > 0.5f && seg.transmittance <= 0.5f) {
             seg.depth = t;
-            glm::vec3 n = set.flat ? glm::normalize(set.prims[prim].row2) : -ray.d;
+            glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
             seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
         }
         ++c.gaussian_hits;
@@ -190,16 +192,17 @@ public:
         L.candidates = 0;
         if (geom == RTC_INVALID_GEOMETRY_ID) return;
         const TopGeometry& tg = s_.top[inst != RTC_INVALID_GEOMETRY_ID ? inst : geom];
-        if (tg.kind == TopGeometry::Gaussians && inst == RTC_INVALID_GEOMETRY_ID) {
+        if (tg.kind == TopGeometry::Gaussians) {
             // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
             const GaussianSet& set = *s_.gaussians[tg.index];
+            prim += tg.offset;  // chunk-local -> index in the set
             glm::vec3 color = set.color(prim, ray.o);
-            if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.prims[prim].center, rng, c);
+            if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.world_center(prim), rng, c);
             seg.radiance = color;
             seg.transmittance = 0.0f;
             seg.terminated = true;
             seg.depth = tfar;
-            const glm::vec3 n = glm::normalize(ng);
+            const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;  // the hit's Ng is in object space
             seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
             ++c.gaussian_hits;
             return;

@@ -2,6 +2,7 @@
 // committed, attached, then released (the scene holds the reference), and the scene committed last.
 #include "raysplats/render/scene.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <string>
@@ -29,6 +30,11 @@ void Scene::Impl::release_scene() {
     for (auto& m : meshes) {
         if (m->sub_scene) rtcReleaseScene(m->sub_scene);
         m->sub_scene = nullptr;
+    }
+    for (auto& g : gaussians) {
+        for (GaussianChunk& c : g->chunks)
+            if (c.scene) rtcReleaseScene(c.scene);
+        g->chunks.clear();
     }
     built = false;
 }
@@ -61,8 +67,10 @@ std::uint32_t Scene::add_material(const Material& material) {
     return std::uint32_t(impl_->materials.size() - 1);
 }
 
-std::uint32_t Scene::add_mesh(const MeshDesc& mesh) {
-    const std::string name = at("mesh", impl_->meshes.size());
+namespace {
+
+// Validates a mesh description (naming it `name`) and makes its record.
+std::unique_ptr<MeshRecord> make_mesh_record(const std::string& name, const MeshDesc& mesh) {
     auto fail = [&](const std::string& problem) { throw InvalidArgument(name + ": " + problem); };
     if (mesh.vertex_count == 0 || mesh.triangle_count == 0) fail("has no vertices or no triangles");
     if (!mesh.vertices || !mesh.indices) fail("vertex or index array is null");
@@ -91,13 +99,10 @@ std::uint32_t Scene::add_mesh(const MeshDesc& mesh) {
     rec->translation = translation_part(mesh.object_to_world);
     rec->normal_matrix = glm::transpose(glm::inverse(rec->linear));
     rec->mirrored = glm::determinant(rec->linear) < 0.0f;
-    impl_->meshes.push_back(std::move(rec));
-    impl_->built = false;
-    return std::uint32_t(impl_->meshes.size() - 1);
+    return rec;
 }
 
-std::uint32_t Scene::add_gaussians(const GaussianCloud& cloud, const Matrix4& object_to_world) {
-    const std::string name = at("Gaussian cloud", impl_->gaussians.size());
+void validate_gaussians(const std::string& name, const GaussianCloud& cloud, const Matrix4& object_to_world) {
     cloud.check_consistent();
     object_to_world.check_affine((name + " object_to_world").c_str());
     if (cloud.size() >= 0xffffffffu) throw InvalidArgument(name + ": too many Gaussians");
@@ -112,12 +117,68 @@ std::uint32_t Scene::add_gaussians(const GaussianCloud& cloud, const Matrix4& ob
         if (cloud.scales[3 * i] < 0 || cloud.scales[3 * i + 1] < 0 || cloud.scales[3 * i + 2] < 0)
             throw InvalidArgument(name + ": Gaussian " + std::to_string(i) + " has a negative scale (scales are linear)");
     }
+}
+
+// Instances `sub` in `top` with an object-to-world matrix; returns the instance's geomID.
+unsigned attach_instance(RTCDevice device, RTCScene top, RTCScene sub, const Matrix4& object_to_world) {
+    RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst, sub);
+    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, object_to_world.m.data());
+    rtcCommitGeometry(inst);
+    const unsigned id = rtcAttachGeometry(top, inst);
+    rtcReleaseGeometry(inst);
+    return id;
+}
+
+void set_instance_transform(RTCScene top, unsigned id, const Matrix4& object_to_world) {
+    RTCGeometry inst = rtcGetGeometry(top, id);
+    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, object_to_world.m.data());
+    rtcCommitGeometry(inst);
+}
+
+void set_triangle_buffers(RTCGeometry tri, const MeshRecord& m) {
+    // The caller's arrays go to Embree as shared buffers: no copy (the padded copy only if needed).
+    rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.vertex_data(), 0,
+                               3 * sizeof(float), m.desc.vertex_count);
+    rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.desc.indices, 0,
+                               3 * sizeof(std::uint32_t), m.desc.triangle_count);
+}
+
+}  // namespace
+
+std::uint32_t Scene::add_mesh(const MeshDesc& mesh) {
+    impl_->meshes.push_back(make_mesh_record(at("mesh", impl_->meshes.size()), mesh));
+    impl_->built = false;
+    return std::uint32_t(impl_->meshes.size() - 1);
+}
+
+void Scene::update_mesh(std::uint32_t index, const MeshDesc& mesh) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    auto rec = make_mesh_record(at("mesh", index), mesh);
+    rec->sub_scene = impl_->meshes[index]->sub_scene;
+    rec->top_geom_id = impl_->meshes[index]->top_geom_id;
+    rec->dirty = true;
+    impl_->meshes[index] = std::move(rec);
+}
+
+std::uint32_t Scene::add_gaussians(const GaussianCloud& cloud, const Matrix4& object_to_world) {
+    validate_gaussians(at("Gaussian cloud", impl_->gaussians.size()), cloud, object_to_world);
     auto set = std::make_unique<GaussianSet>();
     set->cloud = &cloud;
-    set->object_to_world = object_to_world;
+    set->set_transform(object_to_world);
     impl_->gaussians.push_back(std::move(set));
+    impl_->gaussians_dirty.push_back(0);
     impl_->built = false;
     return std::uint32_t(impl_->gaussians.size() - 1);
+}
+
+void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, const Matrix4& object_to_world) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    validate_gaussians(at("Gaussian cloud", index), cloud, object_to_world);
+    GaussianSet& set = *impl_->gaussians[index];
+    set.cloud = &cloud;
+    set.set_transform(object_to_world);
+    impl_->gaussians_dirty[index] = 1;
 }
 
 std::uint32_t Scene::add_light(const Light& light) {
@@ -132,11 +193,9 @@ void Scene::set_world(const World& world) {
     impl_->world = world;
 }
 
-double Scene::build(GaussianMode mode) {
-    Impl& s = *impl_;
-    if (s.built && s.built_mode == mode) return 0.0;
-    const auto start = std::chrono::steady_clock::now();
-    s.release_scene();
+namespace {
+
+void check_materials(const Scene::Impl& s) {
     for (std::size_t mi = 0; mi < s.meshes.size(); ++mi) {
         const MeshRecord& m = *s.meshes[mi];
         if (m.desc.face_materials) {
@@ -149,54 +208,128 @@ double Scene::build(GaussianMode mode) {
             throw InvalidArgument(at("mesh", mi) + ": material " + std::to_string(m.desc.material) + " does not exist");
         }
     }
+}
 
-    s.scene = rtcNewScene(s.device);
-    s.top.clear();
-    for (std::size_t mi = 0; mi < s.meshes.size(); ++mi) {
-        MeshRecord& m = *s.meshes[mi];
-        // The caller's arrays go to Embree as shared buffers: no copy (the padded copy only if needed).
-        RTCGeometry tri = rtcNewGeometry(s.device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.vertex_data(), 0,
-                                   3 * sizeof(float), m.desc.vertex_count);
-        rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.desc.indices, 0,
-                                   3 * sizeof(std::uint32_t), m.desc.triangle_count);
+}  // namespace
+
+void Scene::Impl::build_all(GaussianMode mode) {
+    release_scene();
+    report = Scene::BuildReport{true, 0, 0};
+    scene = rtcNewScene(device);
+    top.clear();
+    auto record_top = [&](unsigned id, TopGeometry what) {
+        if (top.size() <= id) top.resize(id + 1);
+        top[id] = what;
+    };
+    for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
+        MeshRecord& m = *meshes[mi];
+        // Instanced rather than transformed: a transformed copy would break the zero-copy contract, and an instance
+        // lets a moved object keep its BVH.
+        RTCGeometry tri = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        set_triangle_buffers(tri, m);
         rtcCommitGeometry(tri);
-        if (m.desc.object_to_world.is_identity()) {
-            m.top_geom_id = rtcAttachGeometry(s.scene, tri);
-        } else {
-            // Instanced rather than transformed: a transformed copy would break the zero-copy contract, and an
-            // instance lets a moved object keep its BVH.
-            m.sub_scene = rtcNewScene(s.device);
-            rtcAttachGeometry(m.sub_scene, tri);
-            rtcCommitScene(m.sub_scene);
-            RTCGeometry inst = rtcNewGeometry(s.device, RTC_GEOMETRY_TYPE_INSTANCE);
-            rtcSetGeometryInstancedScene(inst, m.sub_scene);
-            rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m.desc.object_to_world.m.data());
-            rtcCommitGeometry(inst);
-            m.top_geom_id = rtcAttachGeometry(s.scene, inst);
-            rtcReleaseGeometry(inst);
-        }
+        m.sub_scene = rtcNewScene(device);
+        rtcAttachGeometry(m.sub_scene, tri);
         rtcReleaseGeometry(tri);
-        if (s.top.size() <= m.top_geom_id) s.top.resize(m.top_geom_id + 1);
-        s.top[m.top_geom_id] = TopGeometry{TopGeometry::Mesh, std::uint32_t(mi)};
-        s.check_device("building a mesh");
+        rtcCommitScene(m.sub_scene);
+        m.top_geom_id = attach_instance(device, scene, m.sub_scene, m.desc.object_to_world);
+        m.dirty = false;
+        ++report.meshes;
+        record_top(m.top_geom_id, TopGeometry{TopGeometry::Mesh, std::uint32_t(mi)});
+        check_device("building a mesh");
     }
-    for (std::size_t gi = 0; gi < s.gaussians.size(); ++gi) {
-        GaussianSet& g = *s.gaussians[gi];
-        if (g.cloud->size() == 0) continue;
-        g.prepare(mode);
-        RTCGeometry geom = g.create_geometry(s.device);
-        g.geom_id = rtcAttachGeometry(s.scene, geom);
-        rtcReleaseGeometry(geom);
-        if (s.top.size() <= g.geom_id) s.top.resize(g.geom_id + 1);
-        s.top[g.geom_id] = TopGeometry{TopGeometry::Gaussians, std::uint32_t(gi)};
+    for (std::size_t gi = 0; gi < gaussians.size(); ++gi) {
+        GaussianSet& g = *gaussians[gi];
+        gaussians_dirty[gi] = 0;
+        g.chunks.clear();
+        const std::size_t n = g.cloud->size();
+        if (n == 0) continue;
+        g.chunk_size = interactive ? interactive_chunk_size : 0xffffffffu;
+        g.prepare(mode, false);
+        // Chunk records are the geometries' user data: sized once, before any geometry points at them.
+        g.chunks.resize((n + g.chunk_size - 1) / g.chunk_size);
+        for (std::size_t k = 0; k < g.chunks.size(); ++k) {
+            GaussianChunk& c = g.chunks[k];
+            c.set = &g;
+            c.offset = std::uint32_t(k * g.chunk_size);
+            c.count = std::uint32_t(std::min<std::size_t>(g.chunk_size, n - c.offset));
+            c.scene = rtcNewScene(device);
+            c.geometry = g.create_geometry(device, c);
+            rtcAttachGeometry(c.scene, c.geometry);
+            rtcReleaseGeometry(c.geometry);  // the chunk's scene holds it
+            rtcCommitScene(c.scene);
+            c.instance_id = attach_instance(device, scene, c.scene, g.object_to_world);
+            record_top(c.instance_id, TopGeometry{TopGeometry::Gaussians, std::uint32_t(gi), c.offset});
+            ++report.gaussian_chunks;
+        }
+        check_device("building Gaussians");
     }
-    rtcCommitScene(s.scene);
-    s.check_device("building the BVH");
+    rtcCommitScene(scene);
+    check_device("building the BVH");
+}
+
+bool Scene::Impl::build_changes(GaussianMode mode) {
+    for (std::size_t gi = 0; gi < gaussians.size(); ++gi)
+        if (gaussians_dirty[gi] && gaussians[gi]->cloud->size() != gaussians[gi]->prims.size()) return false;
+    report = Scene::BuildReport{};
+    for (auto& mp : meshes) {
+        MeshRecord& m = *mp;
+        if (!m.dirty) continue;
+        RTCGeometry tri = rtcGetGeometry(m.sub_scene, 0);
+        set_triangle_buffers(tri, m);
+        rtcCommitGeometry(tri);
+        rtcCommitScene(m.sub_scene);
+        set_instance_transform(scene, m.top_geom_id, m.desc.object_to_world);
+        m.dirty = false;
+        ++report.meshes;
+    }
+    for (std::size_t gi = 0; gi < gaussians.size(); ++gi) {
+        if (!gaussians_dirty[gi]) continue;
+        GaussianSet& g = *gaussians[gi];
+        gaussians_dirty[gi] = 0;
+        const std::vector<char> changed = g.prepare(mode, true);
+        for (std::size_t k = 0; k < g.chunks.size(); ++k) {
+            GaussianChunk& c = g.chunks[k];
+            if (changed[k]) {
+                rtcCommitGeometry(c.geometry);  // its bounds changed: the chunk's BVH is rebuilt
+                rtcCommitScene(c.scene);
+                ++report.gaussian_chunks;
+            }
+            set_instance_transform(scene, c.instance_id, g.object_to_world);
+        }
+    }
+    rtcCommitScene(scene);
+    check_device("updating the BVH");
+    return true;
+}
+
+double Scene::build(GaussianMode mode) {
+    Impl& s = *impl_;
+    const bool changes = std::any_of(s.gaussians_dirty.begin(), s.gaussians_dirty.end(), [](char d) { return d != 0; }) ||
+                         std::any_of(s.meshes.begin(), s.meshes.end(), [](const auto& m) { return m->dirty; });
+    if (s.built && s.built_mode == mode && !changes) {
+        s.report = BuildReport{};
+        return 0.0;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    check_materials(s);
+    if (!(s.built && s.built_mode == mode && s.build_changes(mode))) s.build_all(mode);
     s.built = true;
     s.built_mode = mode;
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
+
+// Chunks are separate instances whose boxes overlap: on showroom_1.5M (bench_render), chunks of 2^18 cost a
+// frame about 5 % (sorted) and 20 % (stochastic) against one chunk, while an edit rebuilds a 2^18 chunk in about
+// 0.1 s instead of the whole cloud in 0.65 s.
+void Scene::set_interactive(bool interactive, std::uint32_t chunk_size) {
+    if (chunk_size == 0) throw InvalidArgument("interactive chunk size must be at least 1");
+    if (impl_->interactive != interactive || impl_->interactive_chunk_size != chunk_size) impl_->built = false;
+    impl_->interactive = interactive;
+    impl_->interactive_chunk_size = chunk_size;
+}
+
+Scene::BuildReport Scene::last_build() const { return impl_->report; }
 
 std::size_t Scene::gaussian_count() const {
     std::size_t n = 0;

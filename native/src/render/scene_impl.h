@@ -20,15 +20,19 @@ struct MeshRecord {
     glm::vec3 translation{0.0f};
     glm::mat3 normal_matrix{1.0f};  // inverse transpose of `linear`
     bool mirrored = false;          // negative determinant: the winding flips
-    RTCScene sub_scene = nullptr;   // when instanced
+    RTCScene sub_scene = nullptr;   // every mesh is instanced, so that moving or editing it rebuilds only its BVH
     unsigned top_geom_id = RTC_INVALID_GEOMETRY_ID;
+    bool dirty = false;             // replaced by Scene::update_mesh since the last build
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
 };
 
+// What a top-level geomID (always an instance) is: a mesh, or a chunk of a Gaussian set whose primitives start at
+// `offset`.
 struct TopGeometry {
     enum Kind { Mesh, Gaussians } kind;
     std::uint32_t index;
+    std::uint32_t offset = 0;
 };
 
 struct Scene::Impl {
@@ -39,15 +43,22 @@ struct Scene::Impl {
     std::vector<Material> materials;
     std::vector<std::unique_ptr<MeshRecord>> meshes;
     std::vector<std::unique_ptr<GaussianSet>> gaussians;
+    std::vector<char> gaussians_dirty;  // per set: replaced by Scene::update_gaussians since the last build
     std::vector<Light> lights;
     World world;
     World world_default;
 
+    bool interactive = false;
+    std::uint32_t interactive_chunk_size = 1u << 18;
+    Scene::BuildReport report;
     bool built = false;
     GaussianMode built_mode = GaussianMode::Flat;
     std::vector<TopGeometry> top;  // by top-level geomID
 
     void release_scene();
+    void build_all(GaussianMode mode);
+    // Rebuilds what update_* marked; false when a change needs build_all (a Gaussian count changed).
+    bool build_changes(GaussianMode mode);
     void check_device(const char* during);
 };
 

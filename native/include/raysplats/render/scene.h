@@ -57,10 +57,30 @@ public:
     // identity, the add-on's world-space clouds).
     std::uint32_t add_gaussians(const GaussianCloud& cloud, const Matrix4& object_to_world = Matrix4{});
     std::uint32_t add_light(const Light& light);
+
+    // Interactive updates (the viewport): each replaces what an add_* call gave, keeping its index, with the same
+    // validation. The next build() then redoes only what changed: the Gaussian chunks whose primitives differ (the
+    // same count; another count rebuilds everything), the instance transforms of moved objects, the BVH of an
+    // edited mesh. The lifetime rule above applies to the new data; the old may be released after this returns.
+    void update_gaussians(std::uint32_t index, const GaussianCloud& cloud, const Matrix4& object_to_world);
+    void update_mesh(std::uint32_t index, const MeshDesc& mesh);
+    // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
+    // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
+    // renders).
+    void set_interactive(bool interactive, std::uint32_t chunk_size = 1u << 18);
+
+    // What the last build() did.
+    struct BuildReport {
+        bool full = false;                  // everything was (re)built
+        std::size_t gaussian_chunks = 0;    // Gaussian chunk BVHs built
+        std::size_t meshes = 0;             // mesh BVHs built
+    };
+    BuildReport last_build() const;
     void set_world(const World& world);
 
-    // Builds (or rebuilds, if the mode changed or something was added) the BVH. render() calls it; calling it
-    // beforehand separates build time from render time. Returns the build time in seconds (0 if nothing to do).
+    // Builds (or rebuilds, if the mode changed or something was added) the BVH, or applies the updates since the
+    // last build. render() calls it; calling it beforehand separates build time from render time. Returns the
+    // build time in seconds (0 if nothing to do).
     double build(GaussianMode mode);
 
     std::size_t gaussian_count() const;
