@@ -67,8 +67,9 @@ raysplats::GaussianMode gaussian_mode_from(const std::string& s) {
 // A scene plus the Python objects whose memory it shares.
 struct RenderScene {
     raysplats::Scene scene;
-    std::vector<py::object> keep_alive;
-    std::deque<raysplats::GaussianCloud> clouds;
+    std::vector<py::object> keep_alive;                // textures
+    std::vector<std::vector<py::object>> mesh_arrays;  // per mesh index
+    std::vector<std::unique_ptr<raysplats::GaussianCloud>> clouds;  // per cloud index (stable addresses)
 
     std::uint32_t add_material(const py::sequence& base_color, float metallic, float roughness, float specular,
                                float transmission, float ior, const py::sequence& emission_color,
@@ -107,9 +108,11 @@ struct RenderScene {
         return index;
     }
 
-    std::uint32_t add_mesh(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
-                           std::uint32_t material, const std::optional<UintArray>& face_materials,
-                           const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
+    // A mesh description over the caller's arrays, and the arrays it points into.
+    static raysplats::MeshDesc mesh_desc(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
+                                         std::uint32_t material, const std::optional<UintArray>& face_materials,
+                                         const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
+                                         std::vector<py::object>& arrays) {
         require_shape(vertices, "vertices", {-1, 3});
         require_shape(triangles, "triangles", {-1, 3});
         raysplats::MeshDesc d;
@@ -119,47 +122,111 @@ struct RenderScene {
         d.triangle_count = std::size_t(triangles.shape(0));
         d.material = material;
         d.object_to_world = matrix_from(matrix, "matrix");
-        keep_alive.push_back(vertices);
-        keep_alive.push_back(triangles);
+        arrays = {vertices, triangles};
         if (face_materials) {
             require_shape(*face_materials, "face_materials", {triangles.shape(0)});
             d.face_materials = face_materials->data();
-            keep_alive.push_back(*face_materials);
+            arrays.push_back(*face_materials);
         }
         if (normals) {
             require_shape(*normals, "normals", {vertices.shape(0), 3});
             d.normals = normals->data();
-            keep_alive.push_back(*normals);
+            arrays.push_back(*normals);
         }
         if (uvs) {
             require_shape(*uvs, "uvs", {vertices.shape(0), 2});
             d.uvs = uvs->data();
-            keep_alive.push_back(*uvs);
+            arrays.push_back(*uvs);
         }
-        return scene.add_mesh(d);
+        return d;
     }
 
-    std::uint32_t add_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
-                                const FloatArray& opacities, const FloatArray& sh, const py::object& matrix) {
+    std::uint32_t add_mesh(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
+                           std::uint32_t material, const std::optional<UintArray>& face_materials,
+                           const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
+        std::vector<py::object> arrays;
+        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
+        const std::uint32_t index = scene.add_mesh(d);
+        mesh_arrays.push_back(std::move(arrays));
+        return index;
+    }
+
+    void set_interactive(bool interactive, std::uint32_t chunk_size) {
+        require_idle();
+        scene.set_interactive(interactive, chunk_size);
+    }
+
+    py::dict last_build() const {
+        const raysplats::Scene::BuildReport r = scene.last_build();
+        py::dict d;
+        d["full"] = r.full;
+        d["gaussian_chunks"] = r.gaussian_chunks;
+        d["meshes"] = r.meshes;
+        return d;
+    }
+
+    // Updates must not race a render of this scene on a RenderJob thread.
+    std::atomic<int> renders_running{0};
+    void require_idle() const {
+        if (renders_running.load() != 0)
+            throw raysplats::Error("the scene is being rendered; wait for or cancel the render before changing it");
+    }
+
+    void update_mesh(std::uint32_t index, const FloatArray& vertices, const UintArray& triangles,
+                     const py::object& matrix, std::uint32_t material, const std::optional<UintArray>& face_materials,
+                     const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
+        require_idle();
+        std::vector<py::object> arrays;
+        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
+        scene.update_mesh(index, d);
+        mesh_arrays[index] = std::move(arrays);  // the old arrays are released only now
+    }
+
+    static std::unique_ptr<raysplats::GaussianCloud> cloud_from(const FloatArray& positions, const FloatArray& rotations,
+                                                                const FloatArray& scales, const FloatArray& opacities,
+                                                                const FloatArray& sh) {
         require_shape(positions, "positions", {-1, 3});
         const py::ssize_t n = positions.shape(0);
         require_shape(rotations, "rotations", {n, 4});
         require_shape(scales, "scales", {n, 3});
         require_shape(opacities, "opacities", {n});
         require_shape(sh, "sh", {n, -1, 3});
-        raysplats::GaussianCloud cloud;
+        auto cloud = std::make_unique<raysplats::GaussianCloud>();
         int degree = -1;
         for (int d = 0; d <= 3; ++d)
             if (raysplats::sh_coeff_count(d) == sh.shape(1)) degree = d;
         if (degree < 0) throw raysplats::InvalidArgument("sh must have 1, 4, 9 or 16 coefficients per channel");
-        cloud.sh_degree = degree;
-        cloud.positions.assign(positions.data(), positions.data() + positions.size());
-        cloud.rotations.assign(rotations.data(), rotations.data() + rotations.size());
-        cloud.scales.assign(scales.data(), scales.data() + scales.size());
-        cloud.opacities.assign(opacities.data(), opacities.data() + opacities.size());
-        cloud.sh.assign(sh.data(), sh.data() + sh.size());
+        cloud->sh_degree = degree;
+        cloud->positions.assign(positions.data(), positions.data() + positions.size());
+        cloud->rotations.assign(rotations.data(), rotations.data() + rotations.size());
+        cloud->scales.assign(scales.data(), scales.data() + scales.size());
+        cloud->opacities.assign(opacities.data(), opacities.data() + opacities.size());
+        cloud->sh.assign(sh.data(), sh.data() + sh.size());
+        return cloud;
+    }
+
+    std::uint32_t add_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                                const FloatArray& opacities, const FloatArray& sh, const py::object& matrix) {
+        auto cloud = cloud_from(positions, rotations, scales, opacities, sh);
+        const std::uint32_t index = scene.add_gaussians(*cloud, matrix_from(matrix, "matrix"));
         clouds.push_back(std::move(cloud));
-        return scene.add_gaussians(clouds.back(), matrix_from(matrix, "matrix"));
+        return index;
+    }
+
+    void update_gaussians(std::uint32_t index, const FloatArray& positions, const FloatArray& rotations,
+                          const FloatArray& scales, const FloatArray& opacities, const FloatArray& sh,
+                          const py::object& matrix) {
+        require_idle();
+        auto cloud = cloud_from(positions, rotations, scales, opacities, sh);
+        scene.update_gaussians(index, *cloud, matrix_from(matrix, "matrix"));
+        clouds[index] = std::move(cloud);
+    }
+
+    // Moves a Gaussian cloud without new data (the viewport's object transform).
+    void set_gaussians_matrix(std::uint32_t index, const py::object& matrix) {
+        require_idle();
+        if (index >= clouds.size()) throw raysplats::InvalidArgument("Gaussian cloud " + std::to_string(index) + " does not exist");
+        scene.update_gaussians(index, *clouds[index], matrix_from(matrix, "matrix"));
     }
 
     std::uint32_t add_light(const std::string& type, const py::sequence& color, float power, const py::object& matrix,
@@ -264,6 +331,7 @@ public:
         : scene_object_(std::move(scene_object)), camera_(camera_from(camera)), settings_(settings_from(settings)) {
         camera_.validate();
         RenderScene& rs = scene_object_.cast<RenderScene&>();
+        ++rs.renders_running;
         thread_ = std::thread([this, &rs] {
             try {
                 film_ = raysplats::render(rs.scene, camera_, settings_,
@@ -271,6 +339,7 @@ public:
             } catch (...) {
                 error_ = std::current_exception();
             }
+            --rs.renders_running;
             std::lock_guard<std::mutex> lock(mutex_);
             done_ = true;
             cv_.notify_all();
@@ -343,6 +412,17 @@ void register_render_bindings(py::module_& m) {
              "sun_angle"_a = 0.0f)
         .def("set_world", &RenderScene::set_world, "color"_a, "strength"_a = 1.0f)
         .def("build", &RenderScene::build, "gaussian_mode"_a = "FLAT", "Builds the BVH; returns seconds")
+        .def("update_mesh", &RenderScene::update_mesh, "index"_a, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
+             "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none(),
+             "Replaces mesh `index` (as add_mesh); the next build rebuilds only its BVH")
+        .def("update_gaussians", &RenderScene::update_gaussians, "index"_a, "positions"_a, "rotations"_a, "scales"_a,
+             "opacities"_a, "sh"_a, "matrix"_a = py::none(),
+             "Replaces Gaussian cloud `index`; the next build rebuilds only the chunks that changed")
+        .def("set_gaussians_matrix", &RenderScene::set_gaussians_matrix, "index"_a, "matrix"_a,
+             "Moves Gaussian cloud `index`; the next build changes only instance transforms")
+        .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
+             "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
+        .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")
         .def_property_readonly("gaussian_count", [](RenderScene& s) { return s.scene.gaussian_count(); })
         .def_property_readonly("mesh_count", [](RenderScene& s) { return s.scene.mesh_count(); })
         .def_property_readonly("light_count", [](RenderScene& s) { return s.scene.light_count(); });
