@@ -88,73 +88,160 @@ class SceneStats:
         self.warnings = []
 
 
+IDENTITY = np.identity(4, dtype=np.float64)
+
+
+class SceneSync:
+    """The native RenderScene of everything visible in an evaluated depsgraph, and which native cloud or mesh each
+    object became, so that the viewport can apply the depsgraph's later changes in place (`update`): an edited or
+    moved Gaussian object replaces its cloud (the renderer rebuilds only the chunks whose Gaussians changed, or
+    only moves instances), an edited or moved mesh object replaces its mesh. Gaussian clouds are recovered in the
+    object's own frame and placed by its world matrix, so moving an object costs no recovery."""
+
+    def __init__(self, depsgraph, warn=None, interactive=False):
+        self.core = native.core()
+        self.render_scene = self.core.RenderScene()
+        if interactive:
+            self.render_scene.set_interactive(True)
+        self.stats = SceneStats()
+        self._warn = warn
+        self._seen_warnings = set()
+        self.clouds = {}  # original object (as_pointer) drawn once (not an instance) -> (native cloud index, splats)
+        self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
+        self._build(depsgraph)
+
+    def _warn_once(self, message):
+        if message not in self._seen_warnings:
+            self._seen_warnings.add(message)
+            self.stats.warnings.append(message)
+            if self._warn:
+                self._warn(message)
+
+    def _recover(self, obj):
+        """Gaussians of an evaluated Gaussian object, in its own frame."""
+        return gaussian_mesh.recover_mesh_gaussians(self.core, obj.data, obj.raysplats, IDENTITY)
+
+    def _build(self, depsgraph):
+        render_scene, stats = self.render_scene, self.stats
+        materials = MaterialTable(render_scene, self._warn_once)
+        mesh_cache = {}
+        for instance in depsgraph.object_instances:
+            obj = instance.object
+            matrix = instance.matrix_world
+            uid = None if instance.is_instance else obj.original.as_pointer()
+            if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
+                cloud = self._recover(obj)
+                if len(cloud["opacities"]):
+                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"],
+                                                       np.array(matrix, dtype=np.float32))
+                    stats.splats += len(cloud["opacities"])
+                    if uid is not None:
+                        self.clouds[uid] = (index, len(cloud["opacities"]))
+            elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
+                arrays = self._mesh_arrays(obj, materials, mesh_cache)
+                if arrays is None:
+                    continue
+                vertices, triangles, face_materials, uvs = arrays
+                index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
+                                              face_materials=face_materials, uvs=uvs)
+                stats.triangles += len(triangles)
+                if uid is not None:
+                    self.meshes[uid] = (index, arrays)
+            elif obj.type == "LIGHT":
+                render_scene.add_light(**_light_kwargs(obj.data, matrix))
+                stats.lights += 1
+        self.materials = materials
+        color, strength = _world(depsgraph.scene)
+        render_scene.set_world(color, strength)
+
+    def _mesh_arrays(self, obj, materials, mesh_cache):
+        """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""
+        slot_materials = [slot.material for slot in obj.material_slots]
+        material_indices = np.array([materials.index(m) for m in slot_materials] or [materials.default],
+                                    dtype=np.uint32)
+        # A mesh with a textured material needs per-corner UVs (corner_mesh_arrays); the others keep the
+        # shared vertices, which are cheaper. The first textured slot chooses the UV map.
+        uv_map = next((m for m in map(materials.uv_map, slot_materials) if m is not None), None)
+        # Instances of one mesh (collection, particle, Geometry Nodes instances) share its arrays.
+        key = (obj.data.as_pointer(), uv_map) if obj.type == "MESH" and mesh_cache is not None else None
+        arrays = mesh_cache.get(key) if key else None
+        if arrays is None:
+            mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
+            try:
+                if uv_map is None:
+                    arrays = triangle_mesh_arrays(mesh) + (None,)
+                else:
+                    vertices, triangles, slots, uvs, layer = corner_mesh_arrays(mesh, uv_map)
+                    arrays = vertices, triangles, slots, uvs
+                    if layer is None:
+                        self._warn_once(f"Mesh '{mesh.name}' has no UV map but a textured material; the texture "
+                                        "is looked up at UV (0, 0)")
+                    elif uv_map and layer != uv_map:
+                        self._warn_once(f"Mesh '{mesh.name}' has no UV map '{uv_map}'; '{layer}' is used")
+            finally:
+                if obj.type != "MESH":
+                    obj.to_mesh_clear()
+            if key:
+                mesh_cache[key] = arrays
+        vertices, triangles, slots, uvs = arrays
+        if not len(triangles):
+            return None
+        face_materials = material_indices[np.minimum(slots, len(material_indices) - 1)]
+        return vertices, triangles, face_materials, uvs
+
+    # Datablocks whose changes the in-place update cannot express: the scene is built again.
+    _REBUILD_TYPES = (bpy.types.Material, bpy.types.World, bpy.types.Light, bpy.types.Image, bpy.types.NodeTree,
+                      bpy.types.Collection)
+
+    def update(self, depsgraph):
+        """Applies the depsgraph's changes in place. Returns "none", "updated" or "rebuild" (the caller makes a new
+        SceneSync: objects were added or removed, or materials, lights or the world changed)."""
+        result = "none"
+        for update in depsgraph.updates:
+            data = update.id
+            if isinstance(data, self._REBUILD_TYPES):
+                return "rebuild"
+            if not isinstance(data, bpy.types.Object):
+                continue  # the scene, meshes (their objects report the change), ...
+            if not (update.is_updated_geometry or update.is_updated_transform):
+                continue  # selection, active object
+            uid = data.original.as_pointer()
+            matrix = np.array(data.matrix_world, dtype=np.float32)
+            if uid in self.clouds:
+                index, count = self.clouds[uid]
+                if update.is_updated_geometry:
+                    cloud = self._recover(data)
+                    if len(cloud["opacities"]) == 0:
+                        return "rebuild"
+                    self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"],
+                                                       cloud["scales"], cloud["opacities"], cloud["sh"], matrix)
+                    self.stats.splats += len(cloud["opacities"]) - count
+                    self.clouds[uid] = (index, len(cloud["opacities"]))
+                else:
+                    self.render_scene.set_gaussians_matrix(index, matrix)
+                result = "updated"
+            elif uid in self.meshes:
+                index, arrays = self.meshes[uid]
+                if update.is_updated_geometry:
+                    arrays = self._mesh_arrays(data, self.materials, None)
+                    if arrays is None:
+                        return "rebuild"
+                    self.stats.triangles += len(arrays[1]) - len(self.meshes[uid][1][1])
+                    self.meshes[uid] = (index, arrays)
+                vertices, triangles, face_materials, uvs = arrays
+                self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
+                                              uvs=uvs)
+                result = "updated"
+            elif data.type != "CAMERA":
+                return "rebuild"  # a new object, an instancer, a light
+        return result
+
+
 def build_render_scene(depsgraph, warn=None):
     """A native RenderScene of everything visible in the evaluated depsgraph. Returns (scene, stats)."""
-    core = native.core()
-    render_scene = core.RenderScene()
-    stats = SceneStats()
-    seen_warnings = set()
-
-    def warn_once(message):
-        if message not in seen_warnings:
-            seen_warnings.add(message)
-            stats.warnings.append(message)
-            if warn:
-                warn(message)
-
-    materials = MaterialTable(render_scene, warn_once)
-    mesh_cache = {}
-    for instance in depsgraph.object_instances:
-        obj = instance.object
-        matrix = instance.matrix_world
-        if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
-            cloud = gaussian_mesh.recover_mesh_gaussians(core, obj.data, obj.raysplats,
-                                                         np.array(matrix, dtype=np.float64))
-            if len(cloud["opacities"]):
-                render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
-                                           cloud["opacities"], cloud["sh"])
-                stats.splats += len(cloud["opacities"])
-        elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
-            slot_materials = [slot.material for slot in obj.material_slots]
-            material_indices = np.array([materials.index(m) for m in slot_materials] or [materials.default],
-                                        dtype=np.uint32)
-            # A mesh with a textured material needs per-corner UVs (corner_mesh_arrays); the others keep the
-            # shared vertices, which are cheaper. The first textured slot chooses the UV map.
-            uv_map = next((m for m in map(materials.uv_map, slot_materials) if m is not None), None)
-            # Instances of one mesh (collection, particle, Geometry Nodes instances) share its arrays.
-            key = (obj.data.as_pointer(), uv_map) if obj.type == "MESH" else None
-            arrays = mesh_cache.get(key) if key else None
-            if arrays is None:
-                mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
-                try:
-                    if uv_map is None:
-                        arrays = triangle_mesh_arrays(mesh) + (None,)
-                    else:
-                        vertices, triangles, slots, uvs, layer = corner_mesh_arrays(mesh, uv_map)
-                        arrays = vertices, triangles, slots, uvs
-                        if layer is None:
-                            warn_once(f"Mesh '{mesh.name}' has no UV map but a textured material; the texture is "
-                                      "looked up at UV (0, 0)")
-                        elif uv_map and layer != uv_map:
-                            warn_once(f"Mesh '{mesh.name}' has no UV map '{uv_map}'; '{layer}' is used")
-                finally:
-                    if obj.type != "MESH":
-                        obj.to_mesh_clear()
-                if key:
-                    mesh_cache[key] = arrays
-            vertices, triangles, slots, uvs = arrays
-            if not len(triangles):
-                continue
-            face_materials = material_indices[np.minimum(slots, len(material_indices) - 1)]
-            render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                  face_materials=face_materials, uvs=uvs)
-            stats.triangles += len(triangles)
-        elif obj.type == "LIGHT":
-            render_scene.add_light(**_light_kwargs(obj.data, matrix))
-            stats.lights += 1
-    color, strength = _world(depsgraph.scene)
-    render_scene.set_world(color, strength)
-    return render_scene, stats
+    scene_sync = SceneSync(depsgraph, warn)
+    return scene_sync.render_scene, scene_sync.stats
 
 
 def camera_settings(scene, camera_object, width, height):

@@ -1,5 +1,6 @@
-# Viewport (Rendered shading): the native scene is kept between redraws and rebuilt only when the depsgraph
-# reports changed geometry; each redraw adds one low-cost sample (stochastic compositing, reduced resolution
+# Viewport (Rendered shading): the native scene is kept between redraws; the depsgraph's changes to Gaussian and
+# mesh objects are applied in place (sync.SceneSync.update: the renderer rebuilds only the Gaussian chunks or mesh
+# that changed, or only moves instances), anything else builds it again; each redraw adds one low-cost sample (stochastic compositing, reduced resolution
 # first) and the accumulated image is drawn with the gpu module, so the first image comes quickly and
 # refines while nothing changes.
 import numpy as np
@@ -14,8 +15,7 @@ last_draw = {"samples": 0, "splats": 0, "draws": 0}
 
 class ViewportState:
     def __init__(self):
-        self.render_scene = None
-        self.stats = None
+        self.sync = None
         self.dirty = True
         self.key = None
         self.accumulated = None
@@ -48,9 +48,19 @@ def view_camera(context, width, height):
 
 def view_update(engine, context, depsgraph):
     state = engine.viewport_state
-    if state.render_scene is None or any(update.is_updated_geometry or update.is_updated_transform
-                                         for update in depsgraph.updates):
+    if state.sync is None or state.dirty:
         state.dirty = True
+        return
+    try:
+        change = state.sync.update(depsgraph)
+    except Exception as error:  # a bad edit (NaN vertices, ...): build again, which reports it
+        print(f"RaySplats viewport: {error}")
+        change = "rebuild"
+    if change == "rebuild":
+        state.dirty = True
+    elif change == "updated":
+        state.samples, state.accumulated = 0, None
+        last_draw["updates"] = last_draw.get("updates", 0) + 1
 
 
 def view_draw(engine, context, depsgraph):
@@ -64,10 +74,11 @@ def view_draw(engine, context, depsgraph):
     divisor = 4 if state.samples == 0 else 1
     width, height = max(1, region.width // divisor), max(1, region.height // divisor)
     if state.dirty:
-        state.render_scene, state.stats = sync.build_render_scene(depsgraph)
-        state.render_scene.build(scene.raysplats.gaussian_mode)
+        state.sync = sync.SceneSync(depsgraph, interactive=True)
+        state.sync.render_scene.build(scene.raysplats.gaussian_mode)
         state.dirty = False
-        state.samples = 0
+        state.samples, state.accumulated = 0, None
+        last_draw["rebuilds"] = last_draw.get("rebuilds", 0) + 1
     camera = view_camera(context, width, height)
     key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)), camera.get("lens"),
            camera.get("ortho_scale"))
@@ -78,7 +89,7 @@ def view_draw(engine, context, depsgraph):
     if state.samples < target:
         settings = sync.render_settings(scene, width, height, 1, seed_offset=state.samples)
         settings["compositing"] = "STOCHASTIC"
-        film = native.core().RenderJob(state.render_scene, camera, settings).result()
+        film = native.core().RenderJob(state.sync.render_scene, camera, settings).result()
         rgba = film["rgba"][::-1]
         if state.accumulated is None or state.accumulated.shape != rgba.shape:
             state.accumulated = rgba.astype(np.float32)
@@ -88,13 +99,14 @@ def view_draw(engine, context, depsgraph):
         h, w = state.accumulated.shape[:2]
         buffer = gpu.types.Buffer("FLOAT", w * h * 4, state.accumulated.ravel())
         state.texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buffer)
-        engine.update_stats("", f"Splats {state.stats.splats:,} | Triangles {state.stats.triangles:,} | "
+        stats = state.sync.stats
+        engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | "
                                 f"Sample {state.samples}/{target}")
         if state.samples < target:
             engine.tag_redraw()
     if state.texture is None:
         return
-    last_draw.update(samples=state.samples, splats=state.stats.splats, draws=last_draw["draws"] + 1)
+    last_draw.update(samples=state.samples, splats=state.sync.stats.splats, draws=last_draw["draws"] + 1)
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
     draw_texture_2d(state.texture, (0, 0), region.width, region.height)
