@@ -3,6 +3,8 @@
 # that changed, or only moves instances), anything else builds it again; each redraw adds one low-cost sample (stochastic compositing, reduced resolution
 # first) and the accumulated image is drawn with the gpu module, so the first image comes quickly and
 # refines while nothing changes.
+import time
+
 import numpy as np
 
 from .. import native
@@ -106,7 +108,8 @@ def view_draw(engine, context, depsgraph):
             engine.tag_redraw()
     if state.texture is None:
         return
-    last_draw.update(samples=state.samples, splats=state.sync.stats.splats, draws=last_draw["draws"] + 1)
+    last_draw.update(samples=state.samples, splats=state.sync.stats.splats, draws=last_draw["draws"] + 1,
+                     time=time.perf_counter())
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
     draw_texture_2d(state.texture, (0, 0), region.width, region.height)
