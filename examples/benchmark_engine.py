@@ -77,3 +77,51 @@ print(f"  viewport first image (1/4 res, 1 spp stochastic) {t_quarter:6.2f} s (+
 print(f"  final frame, 1 spp stochastic      {t_stochastic:6.2f} s")
 print(f"  final frame, 1 spp sorted          {t_sorted:6.2f} s   {film['gaussian_hits'] / max(1, film['camera_rays']):.1f} "
       "Gaussian hits per camera ray")
+
+# The viewport after an edit: the same path as view_update/view_draw (sync.SceneSync.update from the depsgraph's
+# updates, then the build of what changed and the quarter-resolution first image), driven here by a depsgraph
+# handler because a background Blender has no viewport.
+viewport_sync = sync.SceneSync(depsgraph, interactive=True)
+viewport_sync.render_scene.build("FLAT")
+render_scene = viewport_sync.render_scene
+timings = {}
+
+
+def on_update(scene_, depsgraph_):
+    t0 = time.perf_counter()
+    change = viewport_sync.update(depsgraph_)
+    t1 = time.perf_counter()
+    build = viewport_sync.render_scene.build("FLAT")
+    report = viewport_sync.render_scene.last_build()
+    t_first, _ = frame(args.width // 4, args.height // 4, "STOCHASTIC")
+    timings["last"] = (change, t1 - t0, build, report, t_first)
+
+
+bpy.app.handlers.depsgraph_update_post.append(on_update)
+
+
+def measure(label, edit):
+    t0 = time.perf_counter()
+    edit()
+    bpy.context.view_layer.update()
+    total = time.perf_counter() - t0
+    change, t_update, t_build, report, t_first = timings.pop("last")
+    print(f"  viewport after {label:<22} {total:6.2f} s to the first image: {change}, sync {t_update:.2f} s, "
+          f"build {t_build:.2f} s ({report['gaussian_chunks']} chunks, {report['meshes']} meshes), "
+          f"image {t_first:.2f} s")
+
+
+def move():
+    splats.location.x += 0.1
+
+
+def edit_vertices():
+    co = np.empty(len(splats.data.vertices) * 3, dtype=np.float32)
+    splats.data.vertices.foreach_get("co", co)
+    co[2:3 * 64:3] += 0.05  # the first 8 splats move
+    splats.data.vertices.foreach_set("co", co)
+    splats.data.update()
+
+
+measure("moving the splats", move)
+measure("editing 8 splats", edit_vertices)
