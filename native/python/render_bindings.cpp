@@ -225,8 +225,7 @@ struct RenderScene {
     // Moves a Gaussian cloud without new data (the viewport's object transform).
     void set_gaussians_matrix(std::uint32_t index, const py::object& matrix) {
         require_idle();
-        if (index >= clouds.size()) throw raysplats::InvalidArgument("Gaussian cloud " + std::to_string(index) + " does not exist");
-        scene.update_gaussians(index, *clouds[index], matrix_from(matrix, "matrix"));
+        scene.set_gaussians_transform(index, matrix_from(matrix, "matrix"));
     }
 
     std::uint32_t add_light(const std::string& type, const py::sequence& color, float power, const py::object& matrix,

@@ -107,6 +107,13 @@ TEST(RenderUpdate, UpdatedGaussiansRenderLikeAFreshScene) {
             EXPECT_LE(max_difference(render(live.scene, test_camera(), settings(mode, comp)),
                                      render(fresh_identity.scene, test_camera(), settings(mode, comp))),
                       1e-6);
+
+            // Moving without new data (the viewport's object move): instance transforms only, no primitive work.
+            live.scene.set_gaussians_transform(0, moved);
+            live.scene.build(mode);
+            EXPECT_FALSE(live.scene.last_build().full);
+            EXPECT_EQ(live.scene.last_build().gaussian_chunks, 0u);
+            EXPECT_LE(max_difference(render(live.scene, test_camera(), settings(mode, comp)), expected), 1e-6);
         }
 }
 
@@ -158,6 +165,8 @@ TEST(RenderUpdate, BadUpdatesAreRefused) {
     TestScene live(true);
     live.scene.add_gaussians(cloud);
     EXPECT_THROW(live.scene.update_gaussians(1, cloud, Matrix4{}), InvalidArgument);
+    EXPECT_THROW(live.scene.set_gaussians_transform(1, Matrix4{}), InvalidArgument);
+    EXPECT_THROW(live.scene.set_gaussians_transform(0, Matrix4::scale(0, 1, 1)), InvalidArgument);
     GaussianCloud bad = cloud;
     bad.positions[4] = std::nanf("");
     EXPECT_THROW(live.scene.update_gaussians(0, bad, Matrix4{}), InvalidArgument);

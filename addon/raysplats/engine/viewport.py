@@ -1,8 +1,8 @@
 # Viewport (Rendered shading): the native scene is kept between redraws; the depsgraph's changes to Gaussian and
 # mesh objects are applied in place (sync.SceneSync.update: the renderer rebuilds only the Gaussian chunks or mesh
-# that changed, or only moves instances), anything else builds it again; each redraw adds one low-cost sample (stochastic compositing, reduced resolution
-# first) and the accumulated image is drawn with the gpu module, so the first image comes quickly and
-# refines while nothing changes.
+# that changed, or only moves instances), anything else builds it again; each redraw adds one low-cost sample
+# (stochastic compositing, reduced resolution first) and the accumulated image is drawn with the gpu module, so
+# the first image comes quickly and refines while nothing changes.
 import time
 
 import numpy as np

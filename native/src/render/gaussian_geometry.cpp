@@ -1,8 +1,8 @@
 #include "gaussian_geometry.h"
 
 #include <algorithm>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <limits>
 
@@ -133,13 +133,8 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
             // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
             const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(geom_id, args->primID)));
             if (u >= alpha) continue;
+            // The renderer needs only which Gaussian (instance = chunk, primID) and t; it computes the normal.
             tfar = t;
-            const glm::vec3 nrm = set->flat ? g.row2 : -d;  // object space; the renderer uses world normals
-            RTCHitN_Ng_x(hit, n, i) = nrm.x;
-            RTCHitN_Ng_y(hit, n, i) = nrm.y;
-            RTCHitN_Ng_z(hit, n, i) = nrm.z;
-            RTCHitN_u(hit, n, i) = alpha;
-            RTCHitN_v(hit, n, i) = 0.0f;
             RTCHitN_primID(hit, n, i) = args->primID;
             RTCHitN_geomID(hit, n, i) = args->geomID;
             RTCHitN_instID(hit, n, i, 0) = args->context->instID[0];
@@ -171,32 +166,9 @@ void gaussians_occluded(const RTCOccludedFunctionNArguments* args) {
     }
 }
 
-}  // namespace
-
-void GaussianSet::set_transform(const Matrix4& m) {
-    object_to_world = m;
-    linear = linear_part(m);
-    translation = translation_part(m);
-    world_to_object_dir = glm::inverse(linear);
-    normal_matrix = glm::transpose(world_to_object_dir);
-}
-
-std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
-    const bool was_flat = flat;
-    flat = mode == GaussianMode::Flat;
-    const GaussianCloud& c = *cloud;
+// Indices of the cloud's Gaussians in Morton order (10 bits per axis) of their centres.
+std::vector<std::uint32_t> morton_order(const GaussianCloud& c) {
     const std::size_t n = c.size();
-    keep_order = keep_order && cloud_index.size() == n && was_flat == flat;
-    const std::size_t chunk_count = (n + std::size_t(chunk_size) - 1) / std::size_t(chunk_size);
-    std::vector<std::atomic<bool>> chunk_changed(chunk_count);
-    for (auto& f : chunk_changed) f = !keep_order;
-    prims.resize(n);
-    const bool deg0 = c.sh_degree == 0;
-    if (deg0) linear_rgb.resize(3 * n);
-    else linear_rgb.clear();
-    if (!keep_order) {
-
-    // Morton order (10 bits per axis) of the object-space centres.
     glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
     for (std::size_t i = 0; i < n; ++i) {
         const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
@@ -220,9 +192,35 @@ std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
         keyed[i] = (code << 32) | std::uint64_t(i);
     });
     tbb::parallel_sort(keyed.begin(), keyed.end());
-    cloud_index.resize(n);
-    for (std::size_t j = 0; j < n; ++j) cloud_index[j] = std::uint32_t(keyed[j] & 0xffffffffu);
-    }
+    std::vector<std::uint32_t> order(n);
+    for (std::size_t j = 0; j < n; ++j) order[j] = std::uint32_t(keyed[j] & 0xffffffffu);
+    return order;
+}
+
+}  // namespace
+
+void GaussianSet::set_transform(const Matrix4& m) {
+    object_to_world = m;
+    linear = linear_part(m);
+    translation = translation_part(m);
+    world_to_object_dir = glm::inverse(linear);
+    normal_matrix = glm::transpose(world_to_object_dir);
+}
+
+std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
+    const bool was_flat = flat;
+    flat = mode == GaussianMode::Flat;
+    const GaussianCloud& c = *cloud;
+    const std::size_t n = c.size();
+    keep_order = keep_order && cloud_index.size() == n && was_flat == flat;
+    const std::size_t chunk_count = (n + std::size_t(chunk_size) - 1) / std::size_t(chunk_size);
+    std::vector<std::atomic<bool>> chunk_changed(chunk_count);
+    for (auto& f : chunk_changed) f = !keep_order;
+    prims.resize(n);
+    const bool deg0 = c.sh_degree == 0;
+    if (deg0) linear_rgb.resize(3 * n);
+    else linear_rgb.clear();
+    if (!keep_order) cloud_index = morton_order(c);
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t j = r.begin(); j != r.end(); ++j) {

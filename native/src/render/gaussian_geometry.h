@@ -88,6 +88,9 @@ struct GaussianSet {
     std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
     std::vector<GaussianChunk> chunks;
     std::uint32_t chunk_size = 0xffffffffu;  // primitives per chunk (the last may have fewer)
+    // What changed since the last build: new data (primitives recomputed, changed chunks rebuilt) or only the
+    // transform (instance transforms rewritten).
+    enum class Dirty { None, Transform, Data } dirty = Dirty::None;
 
     void set_transform(const Matrix4& m);
     // Computes prims (and colours) for the mode, in parallel. `keep_order`: reuse cloud_index (same count as
@@ -102,7 +105,6 @@ struct GaussianSet {
     // Creates the Embree user geometry of a chunk (bounds + intersect + occluded callbacks).
     RTCGeometry create_geometry(RTCDevice device, GaussianChunk& chunk) const;
 };
-
 
 // What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
 // RTCIntersectContext (the Embree tutorials' pattern for extra per-ray data).

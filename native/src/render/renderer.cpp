@@ -104,12 +104,18 @@ public:
         seg.v = v;
     }
 
+    // The Gaussian set of a hit on top-level instance `geom` (a chunk); turns the chunk-local primID into the
+    // set's primitive index.
+    const GaussianSet& gaussian_of(unsigned geom, std::uint32_t& prim) const {
+        const TopGeometry& tg = s_.top[geom];
+        prim += tg.offset;
+        return *s_.gaussians[tg.index];
+    }
+
     // Composites one Gaussian onto the segment (front to back).
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const {
-        const TopGeometry& tg = s_.top[geom];
-        const GaussianSet& set = *s_.gaussians[tg.index];
-        prim += tg.offset;  // chunk-local -> index in the set
+        const GaussianSet& set = gaussian_of(geom, prim);
         glm::vec3 color = set.color(prim, ray.o);
         if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.world_center(prim), rng, c);
         const float t_before = seg.transmittance;
@@ -186,23 +192,22 @@ public:
     }
 
     void consume_stochastic(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
-                            unsigned prim, float u, float v, const glm::vec3& ng, Sampler& rng, Counters& c) const {
+                            unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
         ++c.traced;
         c.candidates += L.candidates;
         L.candidates = 0;
         if (geom == RTC_INVALID_GEOMETRY_ID) return;
-        const TopGeometry& tg = s_.top[inst != RTC_INVALID_GEOMETRY_ID ? inst : geom];
-        if (tg.kind == TopGeometry::Gaussians) {
+        // Every top-level geometry is an instance (a mesh or a chunk of Gaussians).
+        if (s_.top[inst].kind == TopGeometry::Gaussians) {
             // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
-            const GaussianSet& set = *s_.gaussians[tg.index];
-            prim += tg.offset;  // chunk-local -> index in the set
+            const GaussianSet& set = gaussian_of(inst, prim);
             glm::vec3 color = set.color(prim, ray.o);
             if (st_.meshes_shadow_gaussians) color *= gaussian_light_visibility(set.world_center(prim), rng, c);
             seg.radiance = color;
             seg.transmittance = 0.0f;
             seg.terminated = true;
             seg.depth = tfar;
-            const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;  // the hit's Ng is in object space
+            const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
             seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
             ++c.gaussian_hits;
             return;
@@ -220,7 +225,7 @@ public:
         init_rayhit(rh, ray, ray.tmin);
         rtcIntersect1(s_.scene, &ctx, &rh);
         consume_stochastic(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u, rh.hit.v,
-                           glm::vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rng, c);
+                           rng, c);
         return seg;
     }
 
@@ -264,8 +269,7 @@ public:
                     trace_sorted_from(segs[l], lanes[l], rays[l], rngs[l], c);
             } else {
                 consume_stochastic(segs[l], lanes[l], rays[l], rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.instID[0][l],
-                                   rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l],
-                                   glm::vec3(rh.hit.Ng_x[l], rh.hit.Ng_y[l], rh.hit.Ng_z[l]), rngs[l], c);
+                                   rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l], c);
             }
         }
     }

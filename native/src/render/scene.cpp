@@ -167,7 +167,6 @@ std::uint32_t Scene::add_gaussians(const GaussianCloud& cloud, const Matrix4& ob
     set->cloud = &cloud;
     set->set_transform(object_to_world);
     impl_->gaussians.push_back(std::move(set));
-    impl_->gaussians_dirty.push_back(0);
     impl_->built = false;
     return std::uint32_t(impl_->gaussians.size() - 1);
 }
@@ -178,7 +177,15 @@ void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, co
     GaussianSet& set = *impl_->gaussians[index];
     set.cloud = &cloud;
     set.set_transform(object_to_world);
-    impl_->gaussians_dirty[index] = 1;
+    set.dirty = GaussianSet::Dirty::Data;
+}
+
+void Scene::set_gaussians_transform(std::uint32_t index, const Matrix4& object_to_world) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    object_to_world.check_affine((at("Gaussian cloud", index) + " object_to_world").c_str());
+    GaussianSet& set = *impl_->gaussians[index];
+    set.set_transform(object_to_world);
+    if (set.dirty == GaussianSet::Dirty::None) set.dirty = GaussianSet::Dirty::Transform;
 }
 
 std::uint32_t Scene::add_light(const Light& light) {
@@ -240,7 +247,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
     }
     for (std::size_t gi = 0; gi < gaussians.size(); ++gi) {
         GaussianSet& g = *gaussians[gi];
-        gaussians_dirty[gi] = 0;
+        g.dirty = GaussianSet::Dirty::None;
         g.chunks.clear();
         const std::size_t n = g.cloud->size();
         if (n == 0) continue;
@@ -269,8 +276,8 @@ void Scene::Impl::build_all(GaussianMode mode) {
 }
 
 bool Scene::Impl::build_changes(GaussianMode mode) {
-    for (std::size_t gi = 0; gi < gaussians.size(); ++gi)
-        if (gaussians_dirty[gi] && gaussians[gi]->cloud->size() != gaussians[gi]->prims.size()) return false;
+    for (const auto& g : gaussians)
+        if (g->dirty == GaussianSet::Dirty::Data && g->cloud->size() != g->prims.size()) return false;
     report = Scene::BuildReport{};
     for (auto& mp : meshes) {
         MeshRecord& m = *mp;
@@ -283,20 +290,20 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
         m.dirty = false;
         ++report.meshes;
     }
-    for (std::size_t gi = 0; gi < gaussians.size(); ++gi) {
-        if (!gaussians_dirty[gi]) continue;
-        GaussianSet& g = *gaussians[gi];
-        gaussians_dirty[gi] = 0;
-        const std::vector<char> changed = g.prepare(mode, true);
-        for (std::size_t k = 0; k < g.chunks.size(); ++k) {
-            GaussianChunk& c = g.chunks[k];
-            if (changed[k]) {
-                rtcCommitGeometry(c.geometry);  // its bounds changed: the chunk's BVH is rebuilt
-                rtcCommitScene(c.scene);
+    for (auto& gp : gaussians) {
+        GaussianSet& g = *gp;
+        if (g.dirty == GaussianSet::Dirty::Data) {
+            const std::vector<char> changed = g.prepare(mode, true);
+            for (std::size_t k = 0; k < g.chunks.size(); ++k) {
+                if (!changed[k]) continue;
+                rtcCommitGeometry(g.chunks[k].geometry);  // its bounds changed: the chunk's BVH is rebuilt
+                rtcCommitScene(g.chunks[k].scene);
                 ++report.gaussian_chunks;
             }
-            set_instance_transform(scene, c.instance_id, g.object_to_world);
         }
+        if (g.dirty != GaussianSet::Dirty::None)
+            for (const GaussianChunk& c : g.chunks) set_instance_transform(scene, c.instance_id, g.object_to_world);
+        g.dirty = GaussianSet::Dirty::None;
     }
     rtcCommitScene(scene);
     check_device("updating the BVH");
@@ -305,8 +312,9 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
 
 double Scene::build(GaussianMode mode) {
     Impl& s = *impl_;
-    const bool changes = std::any_of(s.gaussians_dirty.begin(), s.gaussians_dirty.end(), [](char d) { return d != 0; }) ||
-                         std::any_of(s.meshes.begin(), s.meshes.end(), [](const auto& m) { return m->dirty; });
+    const bool changes =
+        std::any_of(s.gaussians.begin(), s.gaussians.end(), [](const auto& g) { return g->dirty != GaussianSet::Dirty::None; }) ||
+        std::any_of(s.meshes.begin(), s.meshes.end(), [](const auto& m) { return m->dirty; });
     if (s.built && s.built_mode == mode && !changes) {
         s.report = BuildReport{};
         return 0.0;

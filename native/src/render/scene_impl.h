@@ -43,7 +43,6 @@ struct Scene::Impl {
     std::vector<Material> materials;
     std::vector<std::unique_ptr<MeshRecord>> meshes;
     std::vector<std::unique_ptr<GaussianSet>> gaussians;
-    std::vector<char> gaussians_dirty;  // per set: replaced by Scene::update_gaussians since the last build
     std::vector<Light> lights;
     World world;
     World world_default;

@@ -63,6 +63,8 @@ public:
     // same count; another count rebuilds everything), the instance transforms of moved objects, the BVH of an
     // edited mesh. The lifetime rule above applies to the new data; the old may be released after this returns.
     void update_gaussians(std::uint32_t index, const GaussianCloud& cloud, const Matrix4& object_to_world);
+    // Moves Gaussian cloud `index` without new data: the next build rewrites only instance transforms.
+    void set_gaussians_transform(std::uint32_t index, const Matrix4& object_to_world);
     void update_mesh(std::uint32_t index, const MeshDesc& mesh);
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
