@@ -24,6 +24,7 @@ namespace {
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 using IntArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
 using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using UintArray = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
 
 // Hands a vector to numpy without copying: the array owns the vector through a capsule.
 template <typename T>
@@ -137,12 +138,8 @@ py::dict gaussians_to_polygons(const FloatArray& positions, const FloatArray& ro
     return d;
 }
 
-py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& corner_vertices,
-                           const IntArray& face_corner_start, const IntArray& face_corner_count,
-                           int vertices_per_polygon, float radius, const DoubleArray& mesh_to_output,
-                           std::optional<FloatArray> opacity, std::optional<FloatArray> thickness,
-                           std::optional<FloatArray> sh_local, std::optional<FloatArray> rest_centers,
-                           std::optional<FloatArray> rest_rotations, std::optional<FloatArray> rest_scales) {
+raysplats::PolygonMeshView mesh_view_of(const FloatArray& vertex_positions, const IntArray& corner_vertices,
+                                        const IntArray& face_corner_start, const IntArray& face_corner_count) {
     raysplats::PolygonMeshView mesh;
     mesh.vertex_count = std::size_t(check_shape(vertex_positions, "vertex_positions", {-1, 3}));
     mesh.vertex_positions = vertex_positions.data();
@@ -153,7 +150,34 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
     mesh.face_corner_start = face_corner_start.data();
     mesh.face_corner_count = face_corner_count.data();
     mesh.face_count = std::size_t(faces);
+    return mesh;
+}
+
+py::array_t<std::uint32_t> faces_with_moved_vertices(const FloatArray& previous_positions, const FloatArray& vertex_positions,
+                                                     const IntArray& corner_vertices, const IntArray& face_corner_start,
+                                                     const IntArray& face_corner_count) {
+    const raysplats::PolygonMeshView mesh = mesh_view_of(vertex_positions, corner_vertices, face_corner_start, face_corner_count);
+    check_shape(previous_positions, "previous_positions", {py::ssize_t(mesh.vertex_count), 3});
+    std::vector<std::uint32_t> faces;
+    {
+        py::gil_scoped_release release;
+        faces = raysplats::faces_with_moved_vertices(mesh, previous_positions.data());
+    }
+    const py::ssize_t n = py::ssize_t(faces.size());
+    return to_numpy(std::move(faces), {n});
+}
+
+py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& corner_vertices,
+                           const IntArray& face_corner_start, const IntArray& face_corner_count,
+                           int vertices_per_polygon, float radius, const DoubleArray& mesh_to_output,
+                           std::optional<FloatArray> opacity, std::optional<FloatArray> thickness,
+                           std::optional<FloatArray> sh_local, std::optional<FloatArray> rest_centers,
+                           std::optional<FloatArray> rest_rotations, std::optional<FloatArray> rest_scales,
+                           std::optional<UintArray> subset) {
+    raysplats::PolygonMeshView mesh = mesh_view_of(vertex_positions, corner_vertices, face_corner_start, face_corner_count);
+    const py::ssize_t faces = py::ssize_t(mesh.face_count);
     check_shape(mesh_to_output, "mesh_to_output", {4, 4});
+
 
     raysplats::SplatFaceAttributesView attr;
     if (opacity) check_shape(*opacity, "opacity", {faces}), attr.opacity = opacity->data();
@@ -175,7 +199,8 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
     raysplats::GaussianCloud cloud;
     {
         py::gil_scoped_release release;
-        cloud = raysplats::recover_gaussians_from_polygons(mesh, attr, options, &stats);
+        cloud = raysplats::recover_gaussians_from_polygons(mesh, attr, options, &stats, subset ? subset->data() : nullptr,
+                                                           subset ? std::size_t(subset->size()) : 0);
     }
     py::dict d = cloud_to_dict(std::move(cloud));
     d["stats"] = py::dict("unedited"_a = stats.unedited, "recovered"_a = stats.recovered, "added"_a = stats.added,
@@ -206,8 +231,13 @@ PYBIND11_MODULE(_native, m) {
     m.def("recover_gaussians", &recover_gaussians, "vertex_positions"_a, "corner_vertices"_a, "face_corner_start"_a,
           "face_corner_count"_a, "vertices_per_polygon"_a, "radius"_a, "mesh_to_output"_a, "opacity"_a = py::none(),
           "thickness"_a = py::none(), "sh_local"_a = py::none(), "rest_centers"_a = py::none(),
-          "rest_rotations"_a = py::none(), "rest_scales"_a = py::none(),
-          "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output.");
+          "rest_rotations"_a = py::none(), "rest_scales"_a = py::none(), "faces"_a = py::none(),
+          "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output; with `faces`, "
+          "only those (row j is face faces[j], bit-identical to a full recovery's).");
+    m.def("faces_with_moved_vertices", &faces_with_moved_vertices, "previous_positions"_a, "vertex_positions"_a,
+          "corner_vertices"_a, "face_corner_start"_a, "face_corner_count"_a,
+          "Faces (ascending uint32) with a corner on a vertex whose position differs bit for bit from "
+          "previous_positions (the same mesh before an edit that kept its topology).");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

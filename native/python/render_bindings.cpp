@@ -222,6 +222,37 @@ struct RenderScene {
         clouds[index] = std::move(cloud);
     }
 
+    // Replaces some Gaussians of cloud `index` (the viewport's edit of a few splats): row j of the arrays becomes
+    // Gaussian rows[j]. The rows are validated before the cloud is touched, so a bad edit changes nothing.
+    void update_gaussian_rows(std::uint32_t index, const UintArray& rows, const FloatArray& positions,
+                              const FloatArray& rotations, const FloatArray& scales, const FloatArray& opacities,
+                              const FloatArray& sh) {
+        require_idle();
+        if (index >= clouds.size()) throw raysplats::InvalidArgument("Gaussian cloud " + std::to_string(index) + " does not exist");
+        auto values = cloud_from(positions, rotations, scales, opacities, sh);
+        require_shape(rows, "rows", {py::ssize_t(values->size())});
+        raysplats::GaussianCloud& cloud = *clouds[index];
+        const std::string name = "Gaussian cloud " + std::to_string(index);
+        if (values->sh_degree != cloud.sh_degree)
+            throw raysplats::InvalidArgument(name + ": the new rows have SH degree " + std::to_string(values->sh_degree) +
+                                             ", the cloud " + std::to_string(cloud.sh_degree));
+        values->check_values(name + " (new rows)");
+        const std::uint32_t* r = rows.data();
+        for (std::size_t j = 0; j < values->size(); ++j)
+            if (r[j] >= cloud.size())
+                throw raysplats::InvalidArgument(name + ": row " + std::to_string(r[j]) + " of " + std::to_string(cloud.size()));
+        const std::size_t k = std::size_t(cloud.coeffs_per_channel()) * 3;
+        for (std::size_t j = 0; j < values->size(); ++j) {
+            const std::size_t i = r[j];
+            std::copy_n(&values->positions[3 * j], 3, &cloud.positions[3 * i]);
+            std::copy_n(&values->rotations[4 * j], 4, &cloud.rotations[4 * i]);
+            std::copy_n(&values->scales[3 * j], 3, &cloud.scales[3 * i]);
+            cloud.opacities[i] = values->opacities[j];
+            std::copy_n(&values->sh[k * j], k, &cloud.sh[k * i]);
+        }
+        scene.gaussians_changed(index, r, values->size());
+    }
+
     // Moves a Gaussian cloud without new data (the viewport's object transform).
     void set_gaussians_matrix(std::uint32_t index, const py::object& matrix) {
         require_idle();
@@ -417,6 +448,10 @@ void register_render_bindings(py::module_& m) {
         .def("update_gaussians", &RenderScene::update_gaussians, "index"_a, "positions"_a, "rotations"_a, "scales"_a,
              "opacities"_a, "sh"_a, "matrix"_a = py::none(),
              "Replaces Gaussian cloud `index`; the next build rebuilds only the chunks that changed")
+        .def("update_gaussian_rows", &RenderScene::update_gaussian_rows, "index"_a, "rows"_a, "positions"_a,
+             "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
+             "Replaces Gaussians `rows` of cloud `index` (row j of the arrays becomes Gaussian rows[j]); the next "
+             "build recomputes only them and rebuilds only the chunks that hold them")
         .def("set_gaussians_matrix", &RenderScene::set_gaussians_matrix, "index"_a, "matrix"_a,
              "Moves Gaussian cloud `index`; the next build changes only instance transforms")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,

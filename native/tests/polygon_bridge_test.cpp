@@ -195,6 +195,52 @@ TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovari
     }
 }
 
+// The viewport's partial recovery: faces_with_moved_vertices finds exactly the faces an edit touched, and
+// recovering only them gives the same rows as a full recovery, bit for bit (SH degree 3 and an object transform,
+// so the moment recovery, the SH rotation and the unedited pass-through all run).
+TEST(PolygonBridge, SubsetRecoveryEqualsTheFullRecoveryOfEditedFaces) {
+    GaussianCloud c = random_cloud(300, 3, 31);
+    PolygonSettings settings{8, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    const std::vector<float> before = p.vertex_positions;
+    // Edit: one vertex of face 10 and all of face 200 (each face owns its 8 vertices here).
+    p.vertex_positions[3 * (8 * 10 + 3) + 1] += 0.01f;
+    for (int k = 0; k < 8; ++k) p.vertex_positions[3 * (8 * 200 + k)] += 0.5f;
+    p.vertex_positions[3 * (8 * 77 + 5) + 2] = p.vertex_positions[3 * (8 * 77 + 5) + 2];  // rewritten, unchanged
+    const std::vector<std::uint32_t> moved = faces_with_moved_vertices(mesh_view(p), before.data());
+    EXPECT_EQ(moved, (std::vector<std::uint32_t>{10, 200}));
+
+    SplatFaceAttributesView attr;
+    attr.opacity = c.opacities.data();
+    attr.thickness = p.thickness.data();
+    attr.sh_degree = 3;
+    attr.sh_local = p.sh_local.data();
+    attr.rest_centers = c.positions.data();
+    attr.rest_rotations = c.rotations.data();
+    attr.rest_scales = c.scales.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    options.mesh_to_output[0] = 2.0, options.mesh_to_output[3] = 0.5, options.mesh_to_output[6] = 0.3;
+    const GaussianCloud full = recover_gaussians_from_polygons(mesh_view(p), attr, options);
+    const std::uint32_t faces[] = {200, 10, 11};  // any order; 11 is unedited
+    RecoveryStats stats;
+    const GaussianCloud part = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats, faces, 3);
+    ASSERT_EQ(part.size(), 3u);
+    EXPECT_EQ(stats.recovered, 2u);
+    EXPECT_EQ(stats.unedited, 1u);
+    const std::size_t k = std::size_t(full.coeffs_per_channel()) * 3;
+    for (std::size_t o = 0; o < 3; ++o) {
+        const std::size_t f = faces[o];
+        for (int j = 0; j < 3; ++j) EXPECT_EQ(part.positions[3 * o + j], full.positions[3 * f + j]);
+        for (int j = 0; j < 4; ++j) EXPECT_EQ(part.rotations[4 * o + j], full.rotations[4 * f + j]);
+        for (int j = 0; j < 3; ++j) EXPECT_EQ(part.scales[3 * o + j], full.scales[3 * f + j]);
+        EXPECT_EQ(part.opacities[o], full.opacities[f]);
+        for (std::size_t j = 0; j < k; ++j) EXPECT_EQ(part.sh[k * o + j], full.sh[k * f + j]);
+    }
+    const std::uint32_t missing[] = {300};
+    EXPECT_THROW(recover_gaussians_from_polygons(mesh_view(p), attr, options, nullptr, missing, 1), InvalidArgument);
+}
+
 TEST(PolygonBridge, DegenerateFacesDoNotCrashAndAreCounted) {
     // Face 0: collinear; face 1: all vertices coincident; face 2: NaN vertex; face 3: a triangle; face 4:
     // corner index out of range.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "raysplats/errors.h"
 #include "raysplats/render/renderer.h"
@@ -115,6 +116,65 @@ TEST(RenderUpdate, UpdatedGaussiansRenderLikeAFreshScene) {
             EXPECT_EQ(live.scene.last_build().gaussian_chunks, 0u);
             EXPECT_LE(max_difference(render(live.scene, test_camera(), settings(mode, comp)), expected), 1e-6);
         }
+}
+
+// Changing a few Gaussians of the cloud in place (Scene::gaussians_changed, the viewport's edit of a few splats)
+// recomputes only their primitives and rebuilds only their chunk; the image equals a fresh scene's. Both modes,
+// sorted and stochastic, with the object moved at the same time.
+TEST(RenderUpdate, ChangedRowsRenderLikeAFreshScene) {
+    for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
+        for (Compositing comp : {Compositing::Sorted, Compositing::Stochastic}) {
+            const GaussianCloud original = random_cloud(11, 400, 1.0f);
+            GaussianCloud live_cloud = original;  // the scene keeps a pointer to it; edited in place below
+            TestScene live(true);
+            live.scene.add_gaussians(live_cloud);
+            live.scene.build(mode);
+
+            const std::uint32_t rows[] = {17, 18};
+            nudge(live_cloud, 17, 0.08f);
+            live_cloud.scales[3 * 18] *= 1.7f;
+            live_cloud.opacities[18] = 0.9f;
+            live.scene.gaussians_changed(0, rows, 2);
+            const Matrix4 moved = Matrix4::translation(0.1f, -0.05f, 0.2f);
+            live.scene.set_gaussians_transform(0, moved);
+            live.scene.build(mode);
+            const Scene::BuildReport report = live.scene.last_build();
+            EXPECT_FALSE(report.full);
+            EXPECT_GE(report.gaussian_chunks, 1u);
+            EXPECT_LE(report.gaussian_chunks, 2u);  // of 7
+            const Film updated = render(live.scene, test_camera(), settings(mode, comp));
+
+            TestScene fresh(true);
+            fresh.scene.add_gaussians(live_cloud, moved);
+            EXPECT_LE(max_difference(updated, render(fresh.scene, test_camera(), settings(mode, comp))), 1e-6)
+                << "mode " << int(mode) << " comp " << int(comp);
+            TestScene before(true);
+            before.scene.add_gaussians(original, moved);
+            EXPECT_GT(max_difference(updated, render(before.scene, test_camera(), settings(mode, comp))), 1e-3);
+
+            // Rows whose values did not change rebuild nothing.
+            live.scene.gaussians_changed(0, rows, 2);
+            live.scene.build(mode);
+            EXPECT_EQ(live.scene.last_build().gaussian_chunks, 0u);
+        }
+}
+
+TEST(RenderUpdate, BadChangedRowsAreRefused) {
+    GaussianCloud cloud = random_cloud(12, 50, 1.0f);
+    TestScene live(true);
+    live.scene.add_gaussians(cloud);
+    live.scene.build(GaussianMode::Flat);
+    const std::uint32_t out_of_range[] = {50};
+    EXPECT_THROW(live.scene.gaussians_changed(0, out_of_range, 1), InvalidArgument);
+    EXPECT_THROW(live.scene.gaussians_changed(1, out_of_range, 0), InvalidArgument);
+    cloud.scales[3 * 7 + 1] = std::nanf("");
+    const std::uint32_t bad[] = {7};
+    try {
+        live.scene.gaussians_changed(0, bad, 1);
+        ADD_FAILURE() << "a NaN scale was accepted";
+    } catch (const InvalidArgument& e) {
+        EXPECT_NE(std::string(e.what()).find("Gaussian 7"), std::string::npos) << e.what();
+    }
 }
 
 // A different count (Gaussians deleted) rebuilds everything and still renders like a fresh scene.

@@ -34,6 +34,10 @@ struct GaussianCloud {
 
     // Throws InvalidArgument if the array sizes disagree with size() and sh_degree.
     void check_consistent() const;
+
+    // Throws InvalidArgument, naming `name` and the first bad Gaussian, if a value is NaN or Inf or a scale is
+    // negative (Gaussians [begin, end); end = size() by default).
+    void check_values(const std::string& name, std::size_t begin = 0, std::size_t end = ~std::size_t(0)) const;
 };
 
 // Things a reader repaired or dropped, for a warning to the user ("3 splats with NaN dropped").

@@ -103,8 +103,16 @@ struct RecoveryStats {
 };
 
 // Recovers one Gaussian per face (in face order, dropped faces left out) in the output space of
-// options.mesh_to_output, with world-space SH. Multi-threaded.
+// options.mesh_to_output, with world-space SH. Multi-threaded. With `faces`, only those faces are recovered (row o
+// of the result is face faces[o], dropped faces again left out): a face's Gaussian depends on nothing but its own
+// corners and attributes, so this equals the same rows of a full recovery, bit for bit (the viewport's edits).
 GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const SplatFaceAttributesView& attributes,
-                                              const RecoveryOptions& options, RecoveryStats* stats = nullptr);
+                                              const RecoveryOptions& options, RecoveryStats* stats = nullptr,
+                                              const std::uint32_t* faces = nullptr, std::size_t faces_count = 0);
+
+// The faces (ascending) with a corner on a vertex whose position differs, bit for bit, from previous_positions
+// (3 floats per vertex, mesh.vertex_count of them: the same mesh before an edit that kept its topology).
+// Multi-threaded.
+std::vector<std::uint32_t> faces_with_moved_vertices(const PolygonMeshView& mesh, const float* previous_positions);
 
 }  // namespace raysplats

@@ -1,5 +1,8 @@
 #include "raysplats/gaussian_cloud.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "raysplats/errors.h"
 
 namespace raysplats {
@@ -28,6 +31,20 @@ void GaussianCloud::check_consistent() const {
     expect(rotations, 4 * n, "rotations");
     expect(scales, 3 * n, "scales");
     expect(sh, n * sh_coeff_count(sh_degree) * 3, "sh");
+}
+
+void GaussianCloud::check_values(const std::string& name, std::size_t begin, std::size_t end) const {
+    end = std::min(end, size());
+    const std::size_t k = std::size_t(coeffs_per_channel()) * 3;
+    for (std::size_t i = begin; i < end; ++i) {
+        bool ok = std::isfinite(opacities[i]);
+        for (int j = 0; j < 3; ++j) ok = ok && std::isfinite(positions[3 * i + j]) && std::isfinite(scales[3 * i + j]);
+        for (int j = 0; j < 4; ++j) ok = ok && std::isfinite(rotations[4 * i + j]);
+        for (std::size_t j = 0; j < k; ++j) ok = ok && std::isfinite(sh[i * k + j]);
+        if (!ok) throw InvalidArgument(name + ": Gaussian " + std::to_string(i) + " has a NaN or Inf value");
+        if (scales[3 * i] < 0 || scales[3 * i + 1] < 0 || scales[3 * i + 2] < 0)
+            throw InvalidArgument(name + ": Gaussian " + std::to_string(i) + " has a negative scale (scales are linear)");
+    }
 }
 
 }  // namespace raysplats

@@ -312,13 +312,19 @@ PolygonMeshView mesh_view(const SplatPolygons& p) {
 }
 
 GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const SplatFaceAttributesView& attr,
-                                              const RecoveryOptions& options, RecoveryStats* stats_out) {
+                                              const RecoveryOptions& options, RecoveryStats* stats_out,
+                                              const std::uint32_t* faces, std::size_t faces_count) {
     options.polygon.validate();
     if (attr.sh_degree < 0 || attr.sh_degree > 3)
         throw InvalidArgument("SH degree must be 0..3, got " + std::to_string(attr.sh_degree));
-    const std::size_t nf = mesh.face_count;
-    if (nf > 0 && (!mesh.face_corner_start || !mesh.face_corner_count))
+    if (mesh.face_count > 0 && (!mesh.face_corner_start || !mesh.face_corner_count))
         throw InvalidArgument("polygon mesh has faces but no face corner arrays");
+    for (std::size_t o = 0; faces && o < faces_count; ++o)
+        if (faces[o] >= mesh.face_count)
+            throw InvalidArgument("face " + std::to_string(faces[o]) + " to recover does not exist (the mesh has " +
+                                  std::to_string(mesh.face_count) + ")");
+    // Output row o is face faces[o] (all faces in order without a subset).
+    const std::size_t nf = faces ? faces_count : mesh.face_count;
     const double* mo = options.mesh_to_output;
     for (int i = 0; i < 16; ++i)
         if (!std::isfinite(mo[i])) throw InvalidArgument("the object's transform contains NaN or infinite values");
@@ -347,7 +353,8 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
         Vec3 local[kMaxPolygonVertices > 256 ? kMaxPolygonVertices : 256];
         float rest_polygon[3 * kMaxPolygonVertices];
         std::vector<Vec3> big;  // faces with more than 256 corners (user-made n-gons)
-        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+        for (std::size_t o = range.begin(); o != range.end(); ++o) {
+            const std::size_t f = faces ? faces[o] : o;
             const std::int64_t start = mesh.face_corner_start[f];
             const int count = mesh.face_corner_count[f];
             bool valid = count >= 3 && start >= 0 && std::size_t(start) + std::size_t(count) <= mesh.corner_count;
@@ -367,7 +374,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
                 valid = std::isfinite(v[k].x) && std::isfinite(v[k].y) && std::isfinite(v[k].z);
             }
             if (!valid) {
-                keep[f] = 0;
+                keep[o] = 0;
                 ++n_dropped;
                 continue;
             }
@@ -401,9 +408,9 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             }
 
             // Output: centre, rotation, scales.
-            float* out_pos = &cloud.positions[3 * f];
-            float* out_rot = &cloud.rotations[4 * f];
-            float* out_scale = &cloud.scales[3 * f];
+            float* out_pos = &cloud.positions[3 * o];
+            float* out_rot = &cloud.rotations[4 * o];
+            float* out_scale = &cloud.scales[3 * o];
             if (identity && exact_rest) {
                 // Bit-exact pass-through of the imported Gaussian (translation applied if any).
                 if (t.x == 0 && t.y == 0 && t.z == 0) {
@@ -424,9 +431,9 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             }
 
             float op = is_added ? kNewFaceOpacity : (attr.opacity ? attr.opacity[f] : kNewFaceOpacity);
-            cloud.opacities[f] = std::isfinite(op) ? std::min(1.0f, std::max(0.0f, op)) : 0.0f;
+            cloud.opacities[o] = std::isfinite(op) ? std::min(1.0f, std::max(0.0f, op)) : 0.0f;
 
-            float* out_sh = &cloud.sh[f * coeffs * 3];
+            float* out_sh = &cloud.sh[o * coeffs * 3];
             if (attr.sh_local && !is_added) {
                 const float* in_sh = &attr.sh_local[f * coeffs * 3];
                 if (degree > 0) {
@@ -468,6 +475,36 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
         stats_out->degenerate = degenerate, stats_out->dropped = dropped;
     }
     return cloud;
+}
+
+std::vector<std::uint32_t> faces_with_moved_vertices(const PolygonMeshView& mesh, const float* previous_positions) {
+    std::vector<unsigned char> moved(mesh.vertex_count);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.vertex_count, 1 << 16), [&](const auto& range) {
+        for (std::size_t v = range.begin(); v != range.end(); ++v)
+            moved[v] = std::memcmp(&mesh.vertex_positions[3 * v], &previous_positions[3 * v], 3 * sizeof(float)) != 0;
+    });
+    std::vector<unsigned char> face_moved(mesh.face_count);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.face_count, kGrain), [&](const auto& range) {
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+            const std::int64_t start = mesh.face_corner_start[f];
+            const std::int64_t end = start + mesh.face_corner_count[f];
+            if (start < 0 || end > std::int64_t(mesh.corner_count))
+                throw InvalidArgument("face " + std::to_string(f) + " has corners outside the corner array");
+            bool any = false;
+            for (std::int64_t k = start; k < end && !any; ++k) {
+                const std::int32_t vi = mesh.corner_vertices[k];
+                if (vi < 0 || std::size_t(vi) >= mesh.vertex_count)
+                    throw InvalidArgument("face " + std::to_string(f) + " uses vertex " + std::to_string(vi) + " of " +
+                                          std::to_string(mesh.vertex_count));
+                any = moved[std::size_t(vi)] != 0;
+            }
+            face_moved[f] = any;
+        }
+    });
+    std::vector<std::uint32_t> faces;
+    for (std::size_t f = 0; f < mesh.face_count; ++f)
+        if (face_moved[f]) faces.push_back(std::uint32_t(f));
+    return faces;
 }
 
 }  // namespace raysplats

@@ -130,8 +130,9 @@ void gaussians_intersect(const RTCIntersectFunctionNArguments* args) {
                 RTCHitN_instID(hit, n, i, 0) = RTC_INVALID_GEOMETRY_ID;
             }
         } else if (ctx->mode == TraceMode::Stochastic) {
-            // The acceptance draw depends on (ray seed, Gaussian) only, never on traversal order.
-            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(geom_id, args->primID)));
+            // The acceptance draw depends on (ray seed, Gaussian) only: never on traversal order, primitive order
+            // or chunking, so an edited or differently chunked scene draws the same for every Gaussian.
+            const float u = u32_to_unit_float(hash_combine(L.seed, hash_combine(set->index, g.cloud_index)));
             if (u >= alpha) continue;
             // The renderer needs only which Gaussian (instance = chunk, primID) and t; it computes the normal.
             tfar = t;
@@ -207,6 +208,39 @@ void GaussianSet::set_transform(const Matrix4& m) {
     normal_matrix = glm::transpose(world_to_object_dir);
 }
 
+namespace {
+
+// The primitive of Gaussian i of a cloud (see GaussianPrimitive).
+GaussianPrimitive make_primitive(const GaussianCloud& c, std::size_t i, bool flat) {
+    const float* q = &c.rotations[4 * i];
+    glm::vec4 qq(q[0], q[1], q[2], q[3]);
+    const float qn = glm::length(qq);
+    qq = qn > 0.0f ? qq / qn : glm::vec4(1, 0, 0, 0);
+    const float w = qq[0], x = qq[1], y = qq[2], z = qq[3];
+    // Columns of R: the Gaussian's axes (reference 3DGS build_rotation).
+    const glm::vec3 axis[3] = {
+        {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)},
+        {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)},
+        {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)},
+    };
+    const float* s = &c.scales[3 * i];
+    int order[3] = {0, 1, 2};
+    std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
+    const float smax = std::max(s[order[0]], 1e-30f);
+    auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
+    GaussianPrimitive g;
+    g.center = glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
+    g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
+    g.row0 = axis[order[0]] * inv_scale(order[0]);
+    g.row1 = axis[order[1]] * inv_scale(order[1]);
+    g.row2 = flat ? axis[order[2]] : axis[order[2]] * inv_scale(order[2]);
+    g.cloud_index = std::uint32_t(i);
+    g.pad1 = g.pad2 = 0.0f;
+    return g;
+}
+
+}  // namespace
+
 std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
     const bool was_flat = flat;
     flat = mode == GaussianMode::Flat;
@@ -220,47 +254,43 @@ std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
     const bool deg0 = c.sh_degree == 0;
     if (deg0) linear_rgb.resize(3 * n);
     else linear_rgb.clear();
-    if (!keep_order) cloud_index = morton_order(c);
+    if (!keep_order) {
+        cloud_index = morton_order(c);
+        prim_index.resize(n);
+        for (std::size_t j = 0; j < n; ++j) prim_index[cloud_index[j]] = std::uint32_t(j);
+    }
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t j = r.begin(); j != r.end(); ++j) {
             const std::size_t i = cloud_index[j];
-            const float* q = &c.rotations[4 * i];
-            glm::vec4 qq(q[0], q[1], q[2], q[3]);
-            const float qn = glm::length(qq);
-            qq = qn > 0.0f ? qq / qn : glm::vec4(1, 0, 0, 0);
-            const float w = qq[0], x = qq[1], y = qq[2], z = qq[3];
-            // Columns of R: the Gaussian's axes (reference 3DGS build_rotation).
-            const glm::vec3 axis[3] = {
-                {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)},
-                {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)},
-                {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)},
-            };
-            const float* s = &c.scales[3 * i];
-            int order[3] = {0, 1, 2};
-            std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
-            const float smax = std::max(s[order[0]], 1e-30f);
-            auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
-            GaussianPrimitive g;
-            g.center = glm::vec3(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
-            g.opacity = std::min(std::max(c.opacities[i], 0.0f), 1.0f);
-            g.row0 = axis[order[0]] * inv_scale(order[0]);
-            g.row1 = axis[order[1]] * inv_scale(order[1]);
-            g.row2 = flat ? axis[order[2]] : axis[order[2]] * inv_scale(order[2]);
-            g.pad0 = g.pad1 = g.pad2 = 0.0f;
+            const GaussianPrimitive g = make_primitive(c, i, flat);
             if (keep_order && std::memcmp(&g, &prims[j], sizeof(g)) != 0)
                 chunk_changed[j / std::size_t(chunk_size)].store(true, std::memory_order_relaxed);
             prims[j] = g;
-            if (deg0) {
-                for (int ch = 0; ch < 3; ++ch)
-                    linear_rgb[3 * j + ch] =
-                        srgb_to_linear(std::max(0.0f, 0.5f + float(kShC0) * c.sh[3 * i + ch]));
-            }
+            if (deg0) store_linear_rgb(j);
         }
     });
     std::vector<char> changed(chunk_count);
     for (std::size_t k = 0; k < chunk_count; ++k) changed[k] = chunk_changed[k].load();
     return changed;
+}
+
+std::vector<char> GaussianSet::prepare_rows(const std::vector<std::uint32_t>& rows) {
+    const GaussianCloud& c = *cloud;
+    std::vector<char> changed((c.size() + std::size_t(chunk_size) - 1) / std::size_t(chunk_size), 0);
+    for (const std::uint32_t i : rows) {
+        const std::uint32_t j = prim_index[i];
+        const GaussianPrimitive g = make_primitive(c, i, flat);
+        if (std::memcmp(&g, &prims[j], sizeof(g)) != 0) changed[j / chunk_size] = 1;
+        prims[j] = g;
+        if (!linear_rgb.empty()) store_linear_rgb(j);
+    }
+    return changed;
+}
+
+void GaussianSet::store_linear_rgb(std::uint32_t j) {
+    const float* dc = &cloud->sh[3 * std::size_t(cloud_index[j])];
+    for (int ch = 0; ch < 3; ++ch) linear_rgb[3 * j + ch] = srgb_to_linear(std::max(0.0f, 0.5f + float(kShC0) * dc[ch]));
 }
 
 glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {

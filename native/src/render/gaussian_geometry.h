@@ -26,7 +26,7 @@ struct alignas(16) GaussianPrimitive {
     glm::vec3 center;
     float opacity;
     glm::vec3 row0;
-    float pad0;
+    std::uint32_t cloud_index;  // the Gaussian's index in its cloud: keys the stochastic draw (independent of order)
     glm::vec3 row1;
     float pad1;
     glm::vec3 row2;
@@ -73,6 +73,7 @@ struct GaussianChunk {
 };
 
 struct GaussianSet {
+    std::uint32_t index = 0;  // in the scene
     const GaussianCloud* cloud = nullptr;
     Matrix4 object_to_world;
     glm::mat3 linear{1.0f};               // A
@@ -85,18 +86,26 @@ struct GaussianSet {
     // chunks are compact in space.
     std::vector<GaussianPrimitive> prims;
     std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
+    std::vector<std::uint32_t> prim_index;   // index in the cloud -> primID (the inverse permutation)
     std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
     std::vector<GaussianChunk> chunks;
     std::uint32_t chunk_size = 0xffffffffu;  // primitives per chunk (the last may have fewer)
-    // What changed since the last build: new data (primitives recomputed, changed chunks rebuilt) or only the
-    // transform (instance transforms rewritten).
-    enum class Dirty { None, Transform, Data } dirty = Dirty::None;
+    // What changed since the last build: only the transform (instance transforms rewritten), some Gaussians of the
+    // cloud (`changed_rows`: only their primitives are recomputed), or new data (every primitive recomputed). In
+    // the last two cases the chunks whose primitives changed are rebuilt.
+    enum class Dirty { None, Transform, Rows, Data } dirty = Dirty::None;
+    std::vector<std::uint32_t> changed_rows;  // cloud indices, when dirty == Rows
 
     void set_transform(const Matrix4& m);
     // Computes prims (and colours) for the mode, in parallel. `keep_order`: reuse cloud_index (same count as
     // before), so that primitive i is the same Gaussian and unchanged chunks stay valid; returns a flag per chunk
     // (of the current chunking) that is set when one of its primitives changed.
     std::vector<char> prepare(GaussianMode mode, bool keep_order);
+    // Recomputes the primitives of the given Gaussians (cloud indices) only, in the current mode and order; returns
+    // the chunk flags as prepare() does.
+    std::vector<char> prepare_rows(const std::vector<std::uint32_t>& rows);
+    // linear_rgb of primitive j from the degree-0 SH of its Gaussian.
+    void store_linear_rgb(std::uint32_t j);
     glm::vec3 world_center(std::uint32_t i) const { return linear * prims[i].center + translation; }
     // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;

@@ -106,17 +106,7 @@ void validate_gaussians(const std::string& name, const GaussianCloud& cloud, con
     cloud.check_consistent();
     object_to_world.check_affine((name + " object_to_world").c_str());
     if (cloud.size() >= 0xffffffffu) throw InvalidArgument(name + ": too many Gaussians");
-    const std::size_t n = cloud.size();
-    const int k = cloud.coeffs_per_channel() * 3;
-    for (std::size_t i = 0; i < n; ++i) {
-        bool ok = std::isfinite(cloud.opacities[i]);
-        for (int j = 0; j < 3; ++j) ok = ok && std::isfinite(cloud.positions[3 * i + j]) && std::isfinite(cloud.scales[3 * i + j]);
-        for (int j = 0; j < 4; ++j) ok = ok && std::isfinite(cloud.rotations[4 * i + j]);
-        for (int j = 0; j < k; ++j) ok = ok && std::isfinite(cloud.sh[i * k + j]);
-        if (!ok) throw InvalidArgument(name + ": Gaussian " + std::to_string(i) + " has a NaN or Inf value");
-        if (cloud.scales[3 * i] < 0 || cloud.scales[3 * i + 1] < 0 || cloud.scales[3 * i + 2] < 0)
-            throw InvalidArgument(name + ": Gaussian " + std::to_string(i) + " has a negative scale (scales are linear)");
-    }
+    cloud.check_values(name);
 }
 
 // Instances `sub` in `top` with an object-to-world matrix; returns the instance's geomID.
@@ -164,6 +154,7 @@ void Scene::update_mesh(std::uint32_t index, const MeshDesc& mesh) {
 std::uint32_t Scene::add_gaussians(const GaussianCloud& cloud, const Matrix4& object_to_world) {
     validate_gaussians(at("Gaussian cloud", impl_->gaussians.size()), cloud, object_to_world);
     auto set = std::make_unique<GaussianSet>();
+    set->index = std::uint32_t(impl_->gaussians.size());
     set->cloud = &cloud;
     set->set_transform(object_to_world);
     impl_->gaussians.push_back(std::move(set));
@@ -178,6 +169,21 @@ void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, co
     set.cloud = &cloud;
     set.set_transform(object_to_world);
     set.dirty = GaussianSet::Dirty::Data;
+}
+
+void Scene::gaussians_changed(std::uint32_t index, const std::uint32_t* rows, std::size_t count) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    GaussianSet& set = *impl_->gaussians[index];
+    const std::string name = at("Gaussian cloud", index);
+    const std::size_t n = set.cloud->size();
+    for (std::size_t k = 0; k < count; ++k) {
+        if (rows[k] >= n)
+            throw InvalidArgument(name + ": changed Gaussian " + std::to_string(rows[k]) + " of " + std::to_string(n));
+        set.cloud->check_values(name, rows[k], rows[k] + 1);
+    }
+    if (set.dirty == GaussianSet::Dirty::Data) return;  // every primitive is recomputed anyway
+    set.dirty = GaussianSet::Dirty::Rows;
+    set.changed_rows.insert(set.changed_rows.end(), rows, rows + count);
 }
 
 void Scene::set_gaussians_transform(std::uint32_t index, const Matrix4& object_to_world) {
@@ -248,6 +254,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
     for (std::size_t gi = 0; gi < gaussians.size(); ++gi) {
         GaussianSet& g = *gaussians[gi];
         g.dirty = GaussianSet::Dirty::None;
+        g.changed_rows.clear();
         g.chunks.clear();
         const std::size_t n = g.cloud->size();
         if (n == 0) continue;
@@ -292,8 +299,9 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
     }
     for (auto& gp : gaussians) {
         GaussianSet& g = *gp;
-        if (g.dirty == GaussianSet::Dirty::Data) {
-            const std::vector<char> changed = g.prepare(mode, true);
+        if (g.dirty == GaussianSet::Dirty::Data || g.dirty == GaussianSet::Dirty::Rows) {
+            const std::vector<char> changed =
+                g.dirty == GaussianSet::Dirty::Data ? g.prepare(mode, true) : g.prepare_rows(g.changed_rows);
             for (std::size_t k = 0; k < g.chunks.size(); ++k) {
                 if (!changed[k]) continue;
                 rtcCommitGeometry(g.chunks[k].geometry);  // its bounds changed: the chunk's BVH is rebuilt
@@ -304,6 +312,7 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
         if (g.dirty != GaussianSet::Dirty::None)
             for (const GaussianChunk& c : g.chunks) set_instance_transform(scene, c.instance_id, g.object_to_world);
         g.dirty = GaussianSet::Dirty::None;
+        g.changed_rows.clear();
     }
     rtcCommitScene(scene);
     check_device("updating the BVH");

@@ -63,6 +63,10 @@ public:
     // same count; another count rebuilds everything), the instance transforms of moved objects, the BVH of an
     // edited mesh. The lifetime rule above applies to the new data; the old may be released after this returns.
     void update_gaussians(std::uint32_t index, const GaussianCloud& cloud, const Matrix4& object_to_world);
+    // The caller changed Gaussians `rows[0..count)` of cloud `index` in place (the cloud given to add_gaussians or
+    // update_gaussians; same count): the next build recomputes only their primitives and rebuilds only the chunks
+    // that hold them. Their values are validated here.
+    void gaussians_changed(std::uint32_t index, const std::uint32_t* rows, std::size_t count);
     // Moves Gaussian cloud `index` without new data: the next build rewrites only instance transforms.
     void set_gaussians_transform(std::uint32_t index, const Matrix4& object_to_world);
     void update_mesh(std::uint32_t index, const MeshDesc& mesh);
