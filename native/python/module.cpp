@@ -167,6 +167,23 @@ py::array_t<std::uint32_t> faces_with_moved_vertices(const FloatArray& previous_
     return to_numpy(std::move(faces), {n});
 }
 
+py::array_t<std::uint32_t> rows_that_differ(const FloatArray& previous, const FloatArray& current) {
+    if (previous.ndim() < 1 || previous.ndim() != current.ndim())
+        throw raysplats::InvalidArgument("rows_that_differ: the arrays must have the same shape");
+    for (py::ssize_t d = 0; d < previous.ndim(); ++d)
+        if (previous.shape(d) != current.shape(d))
+            throw raysplats::InvalidArgument("rows_that_differ: the arrays must have the same shape");
+    const std::size_t rows = std::size_t(previous.shape(0));
+    const std::size_t width = rows ? std::size_t(previous.size()) / rows : 0;
+    std::vector<std::uint32_t> changed;
+    {
+        py::gil_scoped_release release;
+        changed = raysplats::rows_that_differ(previous.data(), current.data(), rows, width);
+    }
+    const py::ssize_t n = py::ssize_t(changed.size());
+    return to_numpy(std::move(changed), {n});
+}
+
 py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& corner_vertices,
                            const IntArray& face_corner_start, const IntArray& face_corner_count,
                            int vertices_per_polygon, float radius, const DoubleArray& mesh_to_output,
@@ -177,7 +194,6 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
     raysplats::PolygonMeshView mesh = mesh_view_of(vertex_positions, corner_vertices, face_corner_start, face_corner_count);
     const py::ssize_t faces = py::ssize_t(mesh.face_count);
     check_shape(mesh_to_output, "mesh_to_output", {4, 4});
-
 
     raysplats::SplatFaceAttributesView attr;
     if (opacity) check_shape(*opacity, "opacity", {faces}), attr.opacity = opacity->data();
@@ -234,6 +250,8 @@ PYBIND11_MODULE(_native, m) {
           "rest_rotations"_a = py::none(), "rest_scales"_a = py::none(), "faces"_a = py::none(),
           "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output; with `faces`, "
           "only those (row j is face faces[j], bit-identical to a full recovery's).");
+    m.def("rows_that_differ", &rows_that_differ, "previous"_a, "current"_a,
+          "Rows (ascending uint32) in which two float arrays of the same shape differ bit for bit.");
     m.def("faces_with_moved_vertices", &faces_with_moved_vertices, "previous_positions"_a, "vertex_positions"_a,
           "corner_vertices"_a, "face_corner_start"_a, "face_corner_count"_a,
           "Faces (ascending uint32) with a corner on a vertex whose position differs bit for bit from "

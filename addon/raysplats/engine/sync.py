@@ -90,12 +90,42 @@ class SceneStats:
 
 IDENTITY = np.identity(4, dtype=np.float64)
 
+# An edit that changes at most this fraction of a Gaussian object's faces recovers only those faces; more, and the
+# whole object is recovered (about as fast then, and simpler).
+PARTIAL_RECOVERY_LIMIT = 0.5
+
+
+class _CloudSource:
+    """What a Gaussian object's cloud was recovered from: its mesh arrays, face attributes and settings. Kept in
+    interactive scenes so that an edit recovers only the faces whose corners or attributes changed."""
+
+    def __init__(self, arrays, attributes, settings_key):
+        self.arrays, self.attributes, self.settings_key = arrays, attributes, settings_key
+
+    def changed_faces(self, core, other):
+        """Faces (ascending uint32) that differ in `other`, a later _CloudSource of the same object, or None when
+        the topology, the settings or the set of stored attributes changed (then everything is recovered)."""
+        if other.settings_key != self.settings_key or other.arrays[0].shape != self.arrays[0].shape:
+            return None
+        # Corner vertices, face starts, face sizes: any change of topology means faces are no longer rows.
+        if not all(np.array_equal(new, old) for new, old in zip(other.arrays[1:], self.arrays[1:])):
+            return None
+        changed = [core.faces_with_moved_vertices(self.arrays[0], *other.arrays)]
+        for name, values in other.attributes.items():
+            old = self.attributes[name]
+            if (values is None) != (old is None):
+                return None
+            if values is not None:
+                changed.append(core.rows_that_differ(old, values))
+        return np.unique(np.concatenate(changed))
+
 
 class SceneSync:
     """The native RenderScene of everything visible in an evaluated depsgraph, and which native cloud or mesh each
-    object became, so that the viewport can apply the depsgraph's later changes in place (`update`): an edited or
-    moved Gaussian object replaces its cloud (the renderer rebuilds only the chunks whose Gaussians changed, or
-    only moves instances), an edited or moved mesh object replaces its mesh. Gaussian clouds are recovered in the
+    object became, so that the viewport can apply the depsgraph's later changes in place (`update`): an edited
+    Gaussian object has only the faces whose corners or attributes changed recovered again and replaced (the whole
+    object when its topology changed), and the renderer rebuilds only the chunks that hold them; a moved one only
+    moves instances; an edited or moved mesh object replaces its mesh. Gaussian clouds are recovered in the
     object's own frame and placed by its world matrix, so moving an object costs no recovery."""
 
     def __init__(self, depsgraph, warn=None, interactive=False):
@@ -107,6 +137,10 @@ class SceneSync:
         self._warn = warn
         self._seen_warnings = set()
         self.clouds = {}  # original object (as_pointer) drawn once (not an instance) -> (native cloud index, splats)
+        self.interactive = interactive
+        self.sources = {}  # interactive: original object -> _CloudSource of its cloud (absent: recover all next time)
+        self.spare_sources = {}  # original object -> an older _CloudSource, whose arrays the next read reuses
+        self.faces_recovered = 0  # by the last update() (diagnostics: an edit of a few splats recovers only them)
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
         self._build(depsgraph)
 
@@ -117,16 +151,66 @@ class SceneSync:
             if self._warn:
                 self._warn(message)
 
-    def _recover(self, obj):
-        """Gaussians of an evaluated Gaussian object, in its own frame."""
+    def _read(self, obj, reuse=None):
+        """The mesh arrays, face attributes and settings of an evaluated Gaussian object (a _CloudSource); `reuse`:
+        an earlier _CloudSource whose arrays may be overwritten."""
+        settings = obj.raysplats
+        key = (settings.vertices_per_polygon, settings.radius, settings.sh_degree)
+        arrays, attributes = (reuse.arrays, reuse.attributes) if reuse else (None, None)
+
+        def read(mesh):
+            return _CloudSource(gaussian_mesh.mesh_arrays(mesh, arrays),
+                                gaussian_mesh.face_attributes(mesh, key[2], attributes), key)
+
         if obj.original.mode == "EDIT":
             # In Edit Mode the evaluated mesh wraps the edit BMesh without filling its arrays; to_mesh() fills a
             # copy (the one costly step of an Edit Mode update: about 1.6 us per splat).
             try:
-                return gaussian_mesh.recover_mesh_gaussians(self.core, obj.to_mesh(), obj.raysplats, IDENTITY)
+                return read(obj.to_mesh())
             finally:
                 obj.to_mesh_clear()
-        return gaussian_mesh.recover_mesh_gaussians(self.core, obj.data, obj.raysplats, IDENTITY)
+        return read(obj.data)
+
+    def _recover(self, obj, source, faces=None):
+        """Gaussians of an evaluated Gaussian object (all, or `faces`), in its own frame."""
+        return gaussian_mesh.recover_from_arrays(self.core, source.arrays, source.attributes, obj.raysplats,
+                                                 IDENTITY, faces)
+
+    def _keep_source(self, uid, source, cloud):
+        # Rows are faces only while no face was dropped (a dropped face shifts the rows after it).
+        if self.interactive and uid is not None and cloud["stats"]["dropped"] == 0:
+            self.sources[uid] = source
+        else:
+            self.sources.pop(uid, None)
+
+    def _update_cloud(self, uid, obj, matrix):
+        """Applies an edit of a Gaussian object to its native cloud: only the changed faces when the topology is
+        the same, else the whole object. False when the object has no Gaussians left (the caller rebuilds)."""
+        index, count = self.clouds[uid]
+        previous = self.sources.get(uid)
+        # Read into the arrays of the source before `previous` (no longer needed), if there is one.
+        source = self._read(obj, self.spare_sources.pop(uid, None))
+        faces = previous.changed_faces(self.core, source) if previous else None
+        if faces is not None and len(faces) <= PARTIAL_RECOVERY_LIMIT * count:
+            part = self._recover(obj, source, faces) if len(faces) else None
+            self.faces_recovered += len(faces)
+            if part is None or len(part["opacities"]) == len(faces):  # no changed face dropped (NaN vertices)
+                if part is not None:
+                    self.render_scene.update_gaussian_rows(index, faces, part["positions"], part["rotations"],
+                                                           part["scales"], part["opacities"], part["sh"])
+                self.render_scene.set_gaussians_matrix(index, matrix)
+                self.sources[uid], self.spare_sources[uid] = source, previous
+                return True
+        cloud = self._recover(obj, source)
+        self.faces_recovered += len(source.arrays[2])
+        if len(cloud["opacities"]) == 0:
+            return False
+        self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"], cloud["scales"],
+                                           cloud["opacities"], cloud["sh"], matrix)
+        self.stats.splats += len(cloud["opacities"]) - count
+        self.clouds[uid] = (index, len(cloud["opacities"]))
+        self._keep_source(uid, source, cloud)
+        return True
 
     def _build(self, depsgraph):
         render_scene, stats = self.render_scene, self.stats
@@ -137,7 +221,8 @@ class SceneSync:
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
-                cloud = self._recover(obj)
+                source = self._read(obj)
+                cloud = self._recover(obj, source)
                 if len(cloud["opacities"]):
                     index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
                                                        cloud["opacities"], cloud["sh"],
@@ -145,6 +230,7 @@ class SceneSync:
                     stats.splats += len(cloud["opacities"])
                     if uid is not None:
                         self.clouds[uid] = (index, len(cloud["opacities"]))
+                        self._keep_source(uid, source, cloud)
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
                 arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
@@ -205,6 +291,7 @@ class SceneSync:
         """Applies the depsgraph's changes in place. Returns "none", "updated" or "rebuild" (the caller makes a new
         SceneSync: objects were added or removed, or materials, lights or the world changed)."""
         result = "none"
+        self.faces_recovered = 0
         for update in depsgraph.updates:
             data = update.id
             if isinstance(data, self._REBUILD_TYPES):
@@ -216,17 +303,10 @@ class SceneSync:
             uid = data.original.as_pointer()
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.clouds:
-                index, count = self.clouds[uid]
-                if update.is_updated_geometry:
-                    cloud = self._recover(data)
-                    if len(cloud["opacities"]) == 0:
-                        return "rebuild"
-                    self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"],
-                                                       cloud["scales"], cloud["opacities"], cloud["sh"], matrix)
-                    self.stats.splats += len(cloud["opacities"]) - count
-                    self.clouds[uid] = (index, len(cloud["opacities"]))
-                else:
-                    self.render_scene.set_gaussians_matrix(index, matrix)
+                if not update.is_updated_geometry:
+                    self.render_scene.set_gaussians_matrix(self.clouds[uid][0], matrix)
+                elif not self._update_cloud(uid, data, matrix):
+                    return "rebuild"
                 result = "updated"
             elif uid in self.meshes:
                 index, arrays = self.meshes[uid]

@@ -115,4 +115,9 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
 // Multi-threaded.
 std::vector<std::uint32_t> faces_with_moved_vertices(const PolygonMeshView& mesh, const float* previous_positions);
 
+// The rows (ascending) in which two row-major float arrays of `rows` x `width` differ bit for bit (a per-face
+// attribute before and after an edit). Multi-threaded.
+std::vector<std::uint32_t> rows_that_differ(const float* previous, const float* current, std::size_t rows,
+                                            std::size_t width);
+
 }  // namespace raysplats

@@ -477,6 +477,17 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
     return cloud;
 }
 
+namespace {
+
+std::vector<std::uint32_t> indices_of_set_flags(const std::vector<unsigned char>& flags) {
+    std::vector<std::uint32_t> indices;
+    for (std::size_t i = 0; i < flags.size(); ++i)
+        if (flags[i]) indices.push_back(std::uint32_t(i));
+    return indices;
+}
+
+}  // namespace
+
 std::vector<std::uint32_t> faces_with_moved_vertices(const PolygonMeshView& mesh, const float* previous_positions) {
     std::vector<unsigned char> moved(mesh.vertex_count);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.vertex_count, 1 << 16), [&](const auto& range) {
@@ -501,10 +512,17 @@ std::vector<std::uint32_t> faces_with_moved_vertices(const PolygonMeshView& mesh
             face_moved[f] = any;
         }
     });
-    std::vector<std::uint32_t> faces;
-    for (std::size_t f = 0; f < mesh.face_count; ++f)
-        if (face_moved[f]) faces.push_back(std::uint32_t(f));
-    return faces;
+    return indices_of_set_flags(face_moved);
+}
+
+std::vector<std::uint32_t> rows_that_differ(const float* previous, const float* current, std::size_t rows,
+                                            std::size_t width) {
+    std::vector<unsigned char> differs(rows);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows, 1 << 15), [&](const auto& range) {
+        for (std::size_t r = range.begin(); r != range.end(); ++r)
+            differs[r] = std::memcmp(&previous[r * width], &current[r * width], width * sizeof(float)) != 0;
+    });
+    return indices_of_set_flags(differs);
 }
 
 }  // namespace raysplats
