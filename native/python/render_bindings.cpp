@@ -231,26 +231,8 @@ struct RenderScene {
         if (index >= clouds.size()) throw raysplats::InvalidArgument("Gaussian cloud " + std::to_string(index) + " does not exist");
         auto values = cloud_from(positions, rotations, scales, opacities, sh);
         require_shape(rows, "rows", {py::ssize_t(values->size())});
-        raysplats::GaussianCloud& cloud = *clouds[index];
-        const std::string name = "Gaussian cloud " + std::to_string(index);
-        if (values->sh_degree != cloud.sh_degree)
-            throw raysplats::InvalidArgument(name + ": the new rows have SH degree " + std::to_string(values->sh_degree) +
-                                             ", the cloud " + std::to_string(cloud.sh_degree));
-        values->check_values(name + " (new rows)");
-        const std::uint32_t* r = rows.data();
-        for (std::size_t j = 0; j < values->size(); ++j)
-            if (r[j] >= cloud.size())
-                throw raysplats::InvalidArgument(name + ": row " + std::to_string(r[j]) + " of " + std::to_string(cloud.size()));
-        const std::size_t k = std::size_t(cloud.coeffs_per_channel()) * 3;
-        for (std::size_t j = 0; j < values->size(); ++j) {
-            const std::size_t i = r[j];
-            std::copy_n(&values->positions[3 * j], 3, &cloud.positions[3 * i]);
-            std::copy_n(&values->rotations[4 * j], 4, &cloud.rotations[4 * i]);
-            std::copy_n(&values->scales[3 * j], 3, &cloud.scales[3 * i]);
-            cloud.opacities[i] = values->opacities[j];
-            std::copy_n(&values->sh[k * j], k, &cloud.sh[k * i]);
-        }
-        scene.gaussians_changed(index, r, values->size());
+        clouds[index]->assign_rows(*values, rows.data(), "Gaussian cloud " + std::to_string(index));
+        scene.gaussians_changed(index, rows.data(), values->size());
     }
 
     // Moves a Gaussian cloud without new data (the viewport's object transform).

@@ -167,6 +167,21 @@ TEST(RenderUpdate, BadChangedRowsAreRefused) {
     const std::uint32_t out_of_range[] = {50};
     EXPECT_THROW(live.scene.gaussians_changed(0, out_of_range, 1), InvalidArgument);
     EXPECT_THROW(live.scene.gaussians_changed(1, out_of_range, 0), InvalidArgument);
+    // GaussianCloud::assign_rows (the bindings' way to change rows) validates everything before it writes.
+    const GaussianCloud kept = cloud;
+    GaussianCloud values = random_cloud(13, 2, 1.0f);
+    const std::uint32_t rows[] = {3, 50};
+    EXPECT_THROW(cloud.assign_rows(values, rows, "cloud"), InvalidArgument);  // row 50 does not exist
+    values.opacities[1] = std::nanf("");
+    const std::uint32_t good_rows[] = {3, 4};
+    EXPECT_THROW(cloud.assign_rows(values, good_rows, "cloud"), InvalidArgument);
+    EXPECT_EQ(cloud.positions, kept.positions);
+    EXPECT_EQ(cloud.opacities, kept.opacities);
+    values.opacities[1] = 0.5f;
+    cloud.assign_rows(values, good_rows, "cloud");
+    EXPECT_EQ(cloud.opacities[4], 0.5f);
+    EXPECT_EQ(cloud.positions[3 * 3], values.positions[0]);
+
     cloud.scales[3 * 7 + 1] = std::nanf("");
     const std::uint32_t bad[] = {7};
     try {

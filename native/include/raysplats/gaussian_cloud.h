@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,10 @@ struct GaussianCloud {
     // Throws InvalidArgument, naming `name` and the first bad Gaussian, if a value is NaN or Inf or a scale is
     // negative (Gaussians [begin, end); end = size() by default).
     void check_values(const std::string& name, std::size_t begin = 0, std::size_t end = ~std::size_t(0)) const;
+
+    // Gaussian rows[j] becomes Gaussian j of `values` (same SH degree). Validates everything first (indices,
+    // values: see check_values, naming `name`), so that on a throw nothing has changed.
+    void assign_rows(const GaussianCloud& values, const std::uint32_t* rows, const std::string& name);
 };
 
 // Things a reader repaired or dropped, for a warning to the user ("3 splats with NaN dropped").

@@ -47,4 +47,25 @@ void GaussianCloud::check_values(const std::string& name, std::size_t begin, std
     }
 }
 
+void GaussianCloud::assign_rows(const GaussianCloud& values, const std::uint32_t* rows, const std::string& name) {
+    values.check_consistent();
+    if (values.sh_degree != sh_degree)
+        throw InvalidArgument(name + ": the new Gaussians have SH degree " + std::to_string(values.sh_degree) +
+                              ", the cloud " + std::to_string(sh_degree));
+    values.check_values(name + " (new values)");
+    for (std::size_t j = 0; j < values.size(); ++j)
+        if (rows[j] >= size())
+            throw InvalidArgument(name + ": Gaussian " + std::to_string(rows[j]) + " of " + std::to_string(size()) +
+                                  " does not exist");
+    const std::size_t k = std::size_t(coeffs_per_channel()) * 3;
+    for (std::size_t j = 0; j < values.size(); ++j) {
+        const std::size_t i = rows[j];
+        std::copy_n(&values.positions[3 * j], 3, &positions[3 * i]);
+        std::copy_n(&values.rotations[4 * j], 4, &rotations[4 * i]);
+        std::copy_n(&values.scales[3 * j], 3, &scales[3 * i]);
+        opacities[i] = values.opacities[j];
+        std::copy_n(&values.sh[k * j], k, &sh[k * i]);
+    }
+}
+
 }  // namespace raysplats
