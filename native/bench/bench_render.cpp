@@ -235,11 +235,12 @@ int main(int argc, char** argv) {
             const double s = f.stats.render_seconds;
             if (print)
                 std::printf("%-10s %-10s  build %.3f s | frame %.3f s | %.2f Mrays/s | %.1f Gaussian hits/ray | "
-                            "%.2f traversals/ray | %.0f candidates/ray | %.2f us CPU/ray\n",
+                            "%.2f traversals/ray | %.0f candidates/ray (%.0f groups) | %.2f us CPU/ray\n",
                             comp == Compositing::Sorted ? "sorted" : "stochastic",
                             mode == GaussianMode::Flat ? "flat" : "volumetric", build, s, rays / s / 1e6,
                             double(f.stats.gaussian_hits) / rays, double(f.stats.traced_rays) / rays,
-                            double(f.stats.gaussian_candidates) / rays, cpu / rays * 1e6);
+                            double(f.stats.gaussian_candidates) / rays, double(f.stats.gaussian_group_candidates) / rays,
+                            cpu / rays * 1e6);
             return s;
         };
 

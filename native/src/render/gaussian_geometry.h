@@ -34,30 +34,24 @@ struct alignas(16) GaussianPrimitive {
 };
 static_assert(sizeof(GaussianPrimitive) == 64, "one cache line per Gaussian");
 
-// Exact ray test. On success returns true with the hit distance t (ray parameter, any sign) and the squared
-// Mahalanobis distance of the evaluation point (at the plane hit for flat, at the maximum response along the
-// ray for volumetric). Written for float, no branches beyond the support test.
-inline bool intersect_gaussian(const GaussianPrimitive& g, bool flat, const glm::vec3& o, const glm::vec3& d,
-                               float& t, float& dist2) {
-    const glm::vec3 p = o - g.center;
-    if (flat) {
-        const float denom = glm::dot(g.row2, d);
-        if (denom == 0.0f) return false;
-        t = -glm::dot(g.row2, p) / denom;
-        const glm::vec3 q = p + t * d;
-        const float u = glm::dot(g.row0, q), v = glm::dot(g.row1, q);
-        dist2 = u * u + v * v;
-    } else {
-        const glm::vec3 po(glm::dot(g.row0, p), glm::dot(g.row1, p), glm::dot(g.row2, p));
-        const glm::vec3 dd(glm::dot(g.row0, d), glm::dot(g.row1, d), glm::dot(g.row2, d));
-        const float d2 = glm::dot(dd, dd);
-        if (d2 == 0.0f) return false;
-        t = -glm::dot(po, dd) / d2;
-        const glm::vec3 q = po + t * dd;
-        dist2 = glm::dot(q, q);
-    }
-    return dist2 <= kGaussianSupportSq;
-}
+// Embree primitives: groups of up to kGroupWidth Gaussians that are consecutive in the set's (Morton) order, stored
+// SoA so that the intersect callback tests a ray against the whole group with SIMD (like Embree's own Triangle4
+// leaves). One Embree user primitive per Gaussian made Embree's per-primitive callback overhead and scattered 64-byte
+// loads a large part of a frame; a group is one callback and one contiguous block of data. The Embree bound of a
+// group is the union of its Gaussians' boxes; GaussianSet::build_groups keeps groups tight (see there). Each
+// Gaussian keeps its identity: hits carry its chunk-local index (first + lane) as primID. Lanes >= count are
+// padding (zero rows and opacity: never a hit). Derived from GaussianSet::prims, which stays the source of truth.
+// On showroom_1.5M (bench_render, CPU per ray against one Gaussian per primitive): stochastic -20 %, sorted -8 %
+// (flat) and -11 % (volumetric), BVH build 0.66 s -> 0.38 s; images unchanged.
+constexpr int kGroupWidth = 8;
+struct alignas(32) GaussianGroup {
+    float center[3][kGroupWidth];  // [axis][lane]
+    float row[9][kGroupWidth];     // [3 * row + axis][lane]: rows 0..2 of GaussianPrimitive
+    float opacity[kGroupWidth];
+    std::uint32_t cloud_index[kGroupWidth];  // GaussianPrimitive::cloud_index (the stochastic draw's key)
+    std::uint32_t first = 0;       // chunk-local index of lane 0
+    std::uint32_t count = 0;       // Gaussians in the group, lanes [0, count)
+};
 
 // One Gaussian cloud in the scene. Primitives are in the cloud's own (object) frame and split into chunks of
 // consecutive primitives; each chunk is an Embree sub-scene instanced with the object-to-world matrix. So moving
@@ -69,6 +63,8 @@ struct GaussianChunk {
     std::uint32_t offset = 0, count = 0;  // primitives [offset, offset + count) of the set
     RTCScene scene = nullptr;
     RTCGeometry geometry = nullptr;        // the user geometry inside `scene` (owned by it)
+    std::vector<GaussianGroup> groups;     // the geometry's primitives (GaussianSet::build_groups)
+    std::vector<RTCBounds> group_bounds;   // their Embree bounds
     unsigned instance_id = RTC_INVALID_GEOMETRY_ID;  // geomID of the instance in the top-level scene
 };
 
@@ -111,8 +107,13 @@ struct GaussianSet {
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
     // World-space unit normal of a flat primitive.
     glm::vec3 world_normal(std::uint32_t i) const { return glm::normalize(normal_matrix * prims[i].row2); }
-    // Creates the Embree user geometry of a chunk (bounds + intersect + occluded callbacks).
+    // Creates the Embree user geometry of a chunk (bounds + intersect + occluded callbacks) and commits it.
     RTCGeometry create_geometry(RTCDevice device, GaussianChunk& chunk) const;
+    // After prepare() changed the chunk's primitives: regroups them and commits the geometry (its BVH is rebuilt
+    // when the chunk's scene is committed).
+    void update_geometry(GaussianChunk& chunk) const;
+    // Groups the chunk's primitives (GaussianGroup) and computes their bounds.
+    void build_groups(GaussianChunk& chunk) const;
 };
 
 // What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
@@ -151,8 +152,9 @@ struct LaneState {
     float base_transmittance = 1.0f;
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;
-    // Statistics: Gaussian callbacks (bounding-box candidates) during the traversal.
+    // Statistics: Gaussian tests (group members) and group callbacks (bounding-box candidates) of the traversal.
     std::uint64_t candidates = 0;
+    std::uint64_t group_candidates = 0;
     // Transmittance (shadow rays) and the compositing threshold.
     float transmittance = 1.0f;
     float transmittance_threshold = 0.0f;

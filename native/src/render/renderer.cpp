@@ -51,7 +51,7 @@ struct Ray {
 };
 
 struct Counters {
-    std::uint64_t traced = 0, gaussian_hits = 0, candidates = 0;
+    std::uint64_t traced = 0, gaussian_hits = 0, candidates = 0, group_candidates = 0;
 };
 
 struct Segment {
@@ -140,7 +140,9 @@ public:
                         unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
         ++c.traced;
         c.candidates += L.candidates;
+        c.group_candidates += L.group_candidates;
         L.candidates = 0;
+        L.group_candidates = 0;
         for (int i = 0; i < L.count; ++i) {
             const GatherHit& h = L.hits[i];
             if (h.t > tfar) break;  // behind the mesh hit found later in the traversal
@@ -195,7 +197,9 @@ public:
                             unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
         ++c.traced;
         c.candidates += L.candidates;
+        c.group_candidates += L.group_candidates;
         L.candidates = 0;
+        L.group_candidates = 0;
         if (geom == RTC_INVALID_GEOMETRY_ID) return;
         // Every top-level geometry is an instance (a mesh or a chunk of Gaussians).
         if (s_.top[inst].kind == TopGeometry::Gaussians) {
@@ -523,7 +527,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     Integrator integrator(impl, settings);
     std::atomic<int> tiles_done{0};
     std::atomic<bool> cancelled{false};
-    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0};
+    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0}, group_candidates{0};
     std::mutex progress_mutex;
     auto is_cancelled = [&] {
         if (cancelled.load(std::memory_order_relaxed)) return true;
@@ -613,6 +617,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
             traced += counters.traced;
             gaussian_hits += counters.gaussian_hits;
             candidates += counters.candidates;
+            group_candidates += counters.group_candidates;
             const int done = ++tiles_done;
             if (progress) {
                 std::lock_guard<std::mutex> lock(progress_mutex);
@@ -626,6 +631,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     film.stats.traced_rays = traced.load();
     film.stats.gaussian_hits = gaussian_hits.load();
     film.stats.gaussian_candidates = candidates.load();
+    film.stats.gaussian_group_candidates = group_candidates.load();
     film.stats.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return film;
 }

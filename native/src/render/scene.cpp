@@ -304,7 +304,7 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
                 g.dirty == GaussianSet::Dirty::Data ? g.prepare(mode, true) : g.prepare_rows(g.changed_rows);
             for (std::size_t k = 0; k < g.chunks.size(); ++k) {
                 if (!changed[k]) continue;
-                rtcCommitGeometry(g.chunks[k].geometry);  // its bounds changed: the chunk's BVH is rebuilt
+                g.update_geometry(g.chunks[k]);  // regrouped; the chunk's BVH is rebuilt
                 rtcCommitScene(g.chunks[k].scene);
                 ++report.gaussian_chunks;
             }

@@ -14,6 +14,7 @@ struct RenderStats {
     std::uint64_t traced_rays = 0;       // every rtcIntersect1/rtcOccluded1 call, including re-traces
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
     std::uint64_t gaussian_candidates = 0;  // Gaussian intersection tests run by the traversals
+    std::uint64_t gaussian_group_candidates = 0;  // the groups of Gaussians (Embree primitives) they belong to
     bool cancelled = false;
 };
 
