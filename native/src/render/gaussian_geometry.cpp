@@ -204,15 +204,37 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
                 L.hits[pos] = GatherHit{t, alpha, geom_id, prim};
                 L.product *= 1.0f - alpha;
                 int cut = -1;
-                if (L.base_transmittance * L.product < L.transmittance_threshold) {
+                if (L.saturated) {
+                    // The buffer ended at the first hit below the threshold, and the new hit lies in front of
+                    // (or at) that one: transmittances before `pos` are unchanged and above it, so the scan goes on
+                    // from pos with the stored prefix (the same products in the same order as a full scan).
+                    float T = pos > 0 ? L.prefix[pos - 1] : L.base_transmittance;
+                    if (pos > 0 && T < L.transmittance_threshold) {
+                        cut = pos - 1;  // the new hit is behind the cut (equal t, larger key)
+                    } else {
+                        for (int j = pos; j < L.count; ++j) {
+                            T *= 1.0f - L.hits[j].alpha;
+                            L.prefix[j] = T;
+                            if (T < L.transmittance_threshold) {
+                                cut = j;
+                                break;
+                            }
+                        }
+                    }
+                    if (cut < 0) {  // the evicted last hit took the buffer above the threshold again
+                        L.saturated = false;
+                        L.product = 1.0f;
+                        for (int j = 0; j < L.count; ++j) L.product *= 1.0f - L.hits[j].alpha;
+                    }
+                } else if (L.base_transmittance * L.product < L.transmittance_threshold) {
                     // Exact scan for the first index where the transmittance falls below the threshold.
-                    float T = L.base_transmittance, P = 1.0f;
+                    float T = L.base_transmittance;
                     for (int j = 0; j < L.count; ++j) {
-                        P *= 1.0f - L.hits[j].alpha;
                         T *= 1.0f - L.hits[j].alpha;
+                        L.prefix[j] = T;
                         if (T < L.transmittance_threshold) {
                             cut = j;
-                            L.product = P;
+                            L.saturated = true;
                             break;
                         }
                     }

@@ -150,6 +150,11 @@ struct LaneState {
     // Exact, and it bounds the traversal depth like an opaque hit would.
     float product = 1.0f;
     float base_transmittance = 1.0f;
+    // After the first cut: the buffer ends at the first hit where the transmittance falls below the threshold,
+    // and prefix[j] = base * prod_{i <= j} (1 - alpha_i) is valid for every hit in it, so a later insertion at
+    // position p rescans only from p (a full rescan per insertion was about 13 % of a sorted frame).
+    bool saturated = false;
+    float prefix[kGatherCapacity];
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;
     // Statistics: Gaussian tests (group members) and group callbacks (bounding-box candidates) of the traversal.

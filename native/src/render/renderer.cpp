@@ -177,6 +177,7 @@ public:
             init_rayhit(rh, ray, L.has_after ? L.after_t : ray.tmin);
             L.count = 0;
             L.product = 1.0f;
+            L.saturated = false;
             L.base_transmittance = seg.transmittance;
             rtcIntersect1(s_.scene, &ctx, &rh);
             if (consume_gather(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
