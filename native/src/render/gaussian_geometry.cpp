@@ -21,6 +21,10 @@ bool hit_before(float t, std::uint64_t key, const GatherHit& h) {
     return t < h.t || (t == h.t && key < gather_key(h.geom, h.prim));
 }
 
+// Squared Mahalanobis radius of a Gaussian's support: 3, tightened to where a * G reaches 1/255 (hits below are
+// skipped anyway): a exp(-r^2 / 2) = 1/255  <=>  r^2 = 2 ln(255 a). Not positive when it never reaches 1/255.
+float support_sq(float opacity) { return std::min(kGaussianSupportSq, 2.0f * std::log(255.0f * opacity)); }
+
 // Axis-aligned box of a Gaussian's support; false when it can never reach kMinAlpha.
 bool gaussian_box(const GaussianPrimitive& g, bool flat, glm::vec3& lower, glm::vec3& upper) {
     // Columns of M^-1 (M = rows 0..2) are the world-space axes scaled by the standard deviations; for flat
@@ -30,10 +34,8 @@ bool gaussian_box(const GaussianPrimitive& g, bool flat, glm::vec3& lower, glm::
     m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
     m[2] = glm::vec3(g.row0.z, g.row1.z, g.row2.z);  // glm is column-major: m[c][r] = row r, column c
     const glm::mat3 l = glm::inverse(m);
-    // Support: Mahalanobis radius 3, tightened to where a * G reaches 1/255 (hits below are skipped anyway):
-    // a exp(-r^2 / 2) = 1/255  <=>  r^2 = 2 ln(255 a). Gaussians that never reach 1/255 get no box and are left
-    // out of every group.
-    const float r2 = std::min(kGaussianSupportSq, 2.0f * std::log(255.0f * g.opacity));
+    // Gaussians that never reach 1/255 get no box and are left out of every group.
+    const float r2 = support_sq(g.opacity);
     if (!(r2 > 0.0f)) return false;
     const float radius = std::sqrt(r2);
     glm::vec3 half;
@@ -99,8 +101,8 @@ struct Avx2 {
     __attribute__((target("avx2"))) static void store(float* p, V a) { _mm256_store_ps(p, a); }
 };
 
-// Exact ray test against every lane of a group: returns the mask of lanes whose support (squared Mahalanobis
-// distance <= 9) the ray reaches at a t in [tnear, tfar], and writes t (any sign) and the squared distance of the
+// Exact ray test against every lane of a group: returns the mask of lanes whose support (GaussianGroup::support)
+// the ray reaches at a t in [tnear, tfar], and writes t (any sign) and the squared distance of the
 // evaluation point: flat, the ray-plane hit and the distance y0^2 + y1^2 there; volumetric, the maximum response
 // along the ray, i.e. the point nearest to the centre in canonical coordinates.
 template <class S, bool Flat>
@@ -109,7 +111,7 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
     using V = typename S::V;
     const V ox = S::set1(o.x), oy = S::set1(o.y), oz = S::set1(o.z);
     const V dx = S::set1(d.x), dy = S::set1(d.y), dz = S::set1(d.z);
-    const V zero = S::set1(0.0f), support = S::set1(kGaussianSupportSq), lo = S::set1(tnear), hi = S::set1(tfar);
+    const V zero = S::set1(0.0f), lo = S::set1(tnear), hi = S::set1(tfar);
     auto dot = [](V ax, V ay, V az, V bx, V by, V bz) {
         return S::add(S::add(S::mul(ax, bx), S::mul(ay, by)), S::mul(az, bz));
     };
@@ -139,7 +141,7 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
             dist2 = dot(qu, qv, qw, qu, qv, qw);
             ok = S::ne(d2, zero);
         }
-        ok = S::and_(ok, S::le(dist2, support));
+        ok = S::and_(ok, S::le(dist2, S::load(&g.support[h])));
         ok = S::and_(ok, S::and_(S::le(lo, t), S::le(t, hi)));
         S::store(t_out + h, t);
         S::store(dist2_out + h, dist2);
@@ -516,6 +518,7 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
                 }
                 g.opacity[lane] = p.opacity;
                 g.cloud_index[lane] = p.cloud_index;
+                g.support[lane] = std::uint32_t(lane) < s.count ? support_sq(p.opacity) : 0.0f;
             }
             RTCBounds& bb = chunk.group_bounds[base[b] + k];
             bb = RTCBounds{};

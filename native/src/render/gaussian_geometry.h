@@ -49,6 +49,9 @@ struct alignas(32) GaussianGroup {
     float row[9][kGroupWidth];     // [3 * row + axis][lane]: rows 0..2 of GaussianPrimitive
     float opacity[kGroupWidth];
     std::uint32_t cloud_index[kGroupWidth];  // GaussianPrimitive::cloud_index (the stochastic draw's key)
+    // Squared Mahalanobis radius within which the Gaussian can reach alpha 1/255 (at most 9): lanes beyond it are
+    // rejected by the SIMD test, before any exp (0 for padding lanes).
+    float support[kGroupWidth];
     std::uint32_t first = 0;       // chunk-local index of lane 0
     std::uint32_t count = 0;       // Gaussians in the group, lanes [0, count)
 };
