@@ -112,8 +112,10 @@ class _CloudSource:
         the topology, the settings or the set of stored attributes changed (then everything is recovered)."""
         if other.settings_key != self.settings_key or other.arrays[0].shape != self.arrays[0].shape:
             return None
-        # Corner vertices, face starts, face sizes: any change of topology means faces are no longer rows.
-        if not all(np.array_equal(new, old) for new, old in zip(other.arrays[1:], self.arrays[1:])):
+        # Corner vertices, face starts, face sizes: any change of topology means faces are no longer rows. (When
+        # mesh_arrays took the face starts from this source, it has compared the corners and sizes already.)
+        if other.arrays[2] is not self.arrays[2] and \
+                not all(np.array_equal(new, old) for new, old in zip(other.arrays[1:], self.arrays[1:])):
             return None
         changed = [core.faces_with_moved_vertices(self.arrays[0], *other.arrays)]
         for name, values in other.attributes.items():
@@ -214,6 +216,8 @@ class SceneSync:
         self.faces_recovered += len(source.arrays[2])
         if len(cloud["opacities"]) == 0:
             return False
+        if previous is not None:
+            self.spare_sources[uid] = previous  # the next read reuses its arrays (no copy in _keep_source)
         self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"], cloud["scales"],
                                            cloud["opacities"], cloud["sh"], matrix)
         self.stats.splats += len(cloud["opacities"]) - count

@@ -134,15 +134,20 @@ public:
         L.transmittance_threshold = st_.transmittance_threshold;
     }
 
-    // Consumes one sorted gathering pass of a ray: composites the buffer; true when the segment is complete,
-    // false when the buffer overflowed and the ray must be re-traced from its last hit.
-    bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
-                        unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
+    // Moves one traversal's statistics from the lane to the counters.
+    static void count_traversal(LaneState& L, Counters& c) {
         ++c.traced;
         c.candidates += L.candidates;
         c.group_candidates += L.group_candidates;
         L.candidates = 0;
         L.group_candidates = 0;
+    }
+
+    // Consumes one sorted gathering pass of a ray: composites the buffer; true when the segment is complete,
+    // false when the buffer overflowed and the ray must be re-traced from its last hit.
+    bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
+                        unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
+        count_traversal(L, c);
         for (int i = 0; i < L.count; ++i) {
             const GatherHit& h = L.hits[i];
             if (h.t > tfar) break;  // behind the mesh hit found later in the traversal
@@ -196,11 +201,7 @@ public:
 
     void consume_stochastic(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
                             unsigned prim, float u, float v, Sampler& rng, Counters& c) const {
-        ++c.traced;
-        c.candidates += L.candidates;
-        c.group_candidates += L.group_candidates;
-        L.candidates = 0;
-        L.group_candidates = 0;
+        count_traversal(L, c);
         if (geom == RTC_INVALID_GEOMETRY_ID) return;
         // Every top-level geometry is an instance (a mesh or a chunk of Gaussians).
         if (s_.top[inst].kind == TopGeometry::Gaussians) {
