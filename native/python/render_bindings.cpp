@@ -329,10 +329,10 @@ raysplats::RenderSettings settings_from(const py::dict& s) {
     return r;
 }
 
-template <typename T>
-py::array_t<T> to_numpy(std::vector<T>&& values, std::vector<py::ssize_t> shape) {
-    auto* owned = new std::vector<T>(std::move(values));
-    py::capsule owner(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+template <typename T, typename A>
+py::array_t<T> to_numpy(std::vector<T, A>&& values, std::vector<py::ssize_t> shape) {
+    auto* owned = new std::vector<T, A>(std::move(values));
+    py::capsule owner(owned, [](void* p) { delete static_cast<std::vector<T, A>*>(p); });
     return py::array_t<T>(shape, owned->data(), owner);
 }
 

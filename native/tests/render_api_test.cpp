@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <thread>
 #include <vector>
 
@@ -208,6 +209,13 @@ TEST(RenderApi, CancellationStopsPromptly) {
     EXPECT_TRUE(f.stats.cancelled);
     EXPECT_LT(seconds, 0.15 + 0.35);
     for (std::size_t i = 1; i < progress.size(); ++i) EXPECT_GE(progress[i], progress[i - 1]);
+    // No tile can finish 100000 samples in 0.15 s: every pixel is the empty film's (the film is not zeroed before
+    // the tiles run; a cancelled or skipped tile clears its own pixels).
+    ASSERT_EQ(f.rgba.size(), 4u * 128 * 128);
+    for (const float v : f.rgba) ASSERT_EQ(v, 0.0f);
+    for (const float v : f.alpha) ASSERT_EQ(v, 0.0f);
+    for (const float v : f.normal) ASSERT_EQ(v, 0.0f);
+    for (const float v : f.depth) ASSERT_EQ(v, std::numeric_limits<float>::infinity());
 
     // Progress reaches 1 on a complete render.
     progress.clear();

@@ -34,13 +34,28 @@ void write_atomically(const std::string& path, Write write) {
 }  // namespace
 
 void Film::resize(int w, int h) {
+    allocate(w, h);
+    clear(0, 0, w, h);
+}
+
+void Film::allocate(int w, int h) {
     width = w;
     height = h;
     const std::size_t n = pixel_count();
-    rgba.assign(4 * n, 0.0f);
-    depth.assign(n, std::numeric_limits<float>::infinity());
-    normal.assign(3 * n, 0.0f);
-    alpha.assign(n, 0.0f);
+    rgba.resize(4 * n);
+    depth.resize(n);
+    normal.resize(3 * n);
+    alpha.resize(n);
+}
+
+void Film::clear(int x0, int y0, int x1, int y1) {
+    for (int y = y0; y < y1; ++y) {
+        const std::size_t begin = std::size_t(y) * width + x0, end = std::size_t(y) * width + x1;
+        std::fill(rgba.begin() + 4 * begin, rgba.begin() + 4 * end, 0.0f);
+        std::fill(depth.begin() + begin, depth.begin() + end, std::numeric_limits<float>::infinity());
+        std::fill(normal.begin() + 3 * begin, normal.begin() + 3 * end, 0.0f);
+        std::fill(alpha.begin() + begin, alpha.begin() + end, 0.0f);
+    }
 }
 
 void Film::write_png(const std::string& path) const {

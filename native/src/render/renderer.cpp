@@ -522,7 +522,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     const Scene::Impl& impl = scene.impl();
 
     Film film;
-    film.resize(settings.width, settings.height);
+    film.allocate(settings.width, settings.height);  // each tile clears its pixels first (parallel first touch)
     const int w = settings.width, h = settings.height, ts = settings.tile_size;
     const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
     const int tile_count = tiles_x * tiles_y;
@@ -542,9 +542,10 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
 
     tbb::parallel_for(tbb::blocked_range<int>(0, tile_count, 1), [&](const tbb::blocked_range<int>& range) {
         for (int tile = range.begin(); tile != range.end(); ++tile) {
-            if (is_cancelled()) return;
             const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
             const int x1 = std::min(x0 + ts, w), y1 = std::min(y0 + ts, h);
+            film.clear(x0, y0, x1, y1);  // also the tiles a cancel leaves empty
+            if (is_cancelled()) continue;
             Counters counters;
             const int tw = x1 - x0;
             std::vector<glm::vec4> accum(std::size_t(tw) * (y1 - y0), glm::vec4(0.0f));
@@ -605,7 +606,10 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     }
                 }
             }
-            if (stop) return;  // a cancelled tile is left empty rather than half-sampled
+            if (stop) {  // a cancelled tile is left empty rather than half-sampled
+                film.clear(x0, y0, x1, y1);
+                continue;
+            }
             const float inv = 1.0f / float(settings.samples);
             for (int y = y0; y < y1; ++y)
                 for (int x = x0; x < x1; ++x) {

