@@ -1,5 +1,8 @@
 # The Blender side of the polygon bridge (DESIGN §5): writes the native core's polygon arrays into a Mesh
-# with bulk foreach_set, and reads any (evaluated) mesh back into arrays for recovery with foreach_get.
+# with bulk foreach_set, and reads any (evaluated) mesh back into arrays for recovery (foreach_get, or the
+# attributes and loop array behind it where they are faster: see read_corner_vertices).
+import ctypes
+
 import bpy
 import numpy as np
 
@@ -49,9 +52,18 @@ def _flat_buffer(reuse, size, dtype):
     return np.empty(size, dtype=dtype)
 
 
-def _read_attribute(mesh, name, data_type, domain, count, reuse=None):
+def _attribute(mesh, name, data_type, domain, count):
+    """Attribute `name` of `mesh` when it has this type, domain and number of elements, else None."""
     attribute = mesh.attributes.get(name)
-    if attribute is None or attribute.data_type != data_type or attribute.domain != domain:
+    if attribute is None or attribute.data_type != data_type or attribute.domain != domain \
+            or len(attribute.data) != count:
+        return None
+    return attribute
+
+
+def _read_attribute(mesh, name, data_type, domain, count, reuse=None):
+    attribute = _attribute(mesh, name, data_type, domain, count)
+    if attribute is None:
         return None
     width = _WIDTH_OF[data_type]
     out = _flat_buffer(reuse, count * width, np.float32)
@@ -100,6 +112,72 @@ def fill_mesh(mesh, polygons, cloud):
     mesh.update()
 
 
+# Reading a Gaussian mesh back was most of the viewport's update after an edit on 4.x. On showroom_1.5M (12 M vertices
+# and corners, warm buffers), Blender 4.2: vertices.foreach_get("co") 0.22 s, loops.foreach_get("vertex_index")
+# 0.57 s; the same values through the attributes "position" and ".corner_vert" 0.011 s and 0.004 s. Blender 3.4:
+# vertices.foreach_get("co") 0.036 s, loops.foreach_get("vertex_index") 0.033 s (into uint32, see _INDEX_DTYPE;
+# 0.47 s into int32), a copy straight out of Blender's loop array 0.005 s. So: the attributes where they exist (4.x),
+# else the loop array in place (3.x), else foreach_get.
+#
+# Blender before 3.6 stores a mesh's corners as one array of DNA MLoop {unsigned int v, e;} (8 bytes,
+# DNA_meshdata_types.h of 3.4); from 3.6 on the corner vertices are an int32 array of their own (".corner_vert"),
+# which MeshLoop.as_pointer() points into (checked on 4.2). Every read checks this layout on the mesh at hand.
+_LOOP_STRIDE = 8 if bpy.app.version < (3, 6, 0) else 4
+_LOOP_VERTEX_OFFSET = 0  # bytes from the start of a loop element to its vertex index (MLoop.v is the first field)
+_LOOP_SPOT_CHECKS = 8  # corners compared with MeshLoop.vertex_index: the first, the last and 6 evenly in between
+_CORNER_VERT_ATTRIBUTE = ".corner_vert"
+_loop_layout_failed = False  # the check failed once: this Blender lays its loops out otherwise, do not look again
+
+
+def read_vertex_positions(mesh, out):
+    """Fills `out` (flat float32, 3 per vertex) with the positions of the vertices of `mesh`. Returns how it read
+    them: "attribute" or "foreach_get"."""
+    attribute = _attribute(mesh, "position", "FLOAT_VECTOR", "POINT", len(mesh.vertices))
+    if attribute is not None:
+        attribute.data.foreach_get("vector", out)
+        return "attribute"
+    mesh.vertices.foreach_get("co", out)
+    return "foreach_get"
+
+
+def _loop_vertex_view(loops):
+    """The vertex index of each corner in place in Blender's loop array (valid while the mesh is unchanged), or None
+    when the array is not laid out as _LOOP_STRIDE and _LOOP_VERTEX_OFFSET say."""
+    count = len(loops)
+    first = loops[0].as_pointer()
+    # The span is checked before anything is read, so that the view never reaches past Blender's array.
+    if loops[1].as_pointer() - first != _LOOP_STRIDE or _LOOP_VERTEX_OFFSET + 4 > _LOOP_STRIDE \
+            or loops[count - 1].as_pointer() - first != (count - 1) * _LOOP_STRIDE:
+        return None
+    elements = np.frombuffer((ctypes.c_char * (count * _LOOP_STRIDE)).from_address(first), dtype=np.uint32)
+    view = elements.reshape((count, _LOOP_STRIDE // 4))[:, _LOOP_VERTEX_OFFSET // 4]
+    spots = np.linspace(0, count - 1, _LOOP_SPOT_CHECKS).astype(np.int64)
+    if any(loops[int(i)].vertex_index != int(view[i]) for i in spots):
+        return None
+    return view
+
+
+def read_corner_vertices(mesh, out):
+    """Fills `out` (flat, one _INDEX_DTYPE element per corner of `mesh`) with the vertex of each corner. Returns how it
+    read them: "attribute", "pointer" or "foreach_get"."""
+    global _loop_layout_failed
+    attribute = _attribute(mesh, _CORNER_VERT_ATTRIBUTE, "INT", "CORNER", len(out))
+    if attribute is not None:
+        attribute.data.foreach_get("value", out.view(np.int32))
+        return "attribute"
+    if not _loop_layout_failed and len(out) > 1:
+        try:
+            view = _loop_vertex_view(mesh.loops)
+        except Exception:  # the fast path is only an optimisation: whatever went wrong, foreach_get still reads
+            view = None
+        if view is not None:
+            np.copyto(out, view.view(out.dtype))
+            return "pointer"
+        _loop_layout_failed = True
+    mesh.loops.foreach_get("vertex_index", out)
+    return "foreach_get"
+
+
 def mesh_arrays(mesh, reuse=None, previous=None):
     """Vertex positions, corner vertices, face corner starts and counts of any mesh, as numpy arrays. `reuse`: an
     earlier result whose arrays may be overwritten. `previous`: the arrays of this mesh before an edit; when its
@@ -107,10 +185,10 @@ def mesh_arrays(mesh, reuse=None, previous=None):
     only the offsets), its face starts are taken as they are instead of read again (the slowest read on 3.x)."""
     reuse = reuse or (None,) * 4
     vertex_positions = _flat_buffer(reuse[0], len(mesh.vertices) * 3, np.float32)
-    mesh.vertices.foreach_get("co", vertex_positions)
+    read_vertex_positions(mesh, vertex_positions)
     corner_vertices = _flat_buffer(None if reuse[1] is None else reuse[1].view(_INDEX_DTYPE), len(mesh.loops),
                                    _INDEX_DTYPE)
-    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    read_corner_vertices(mesh, corner_vertices)
     corner_vertices = corner_vertices.view(np.int32)
     face_corner_count = _flat_buffer(reuse[3], len(mesh.polygons), np.int32)
     mesh.polygons.foreach_get("loop_total", face_corner_count)

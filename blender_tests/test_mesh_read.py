@@ -1,0 +1,157 @@
+# Reading a Gaussian mesh back (gaussian_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop array
+# in place on 3.x) give exactly what Blender's own foreach_get gives, after edits of the positions and of the
+# topology, on empty meshes, and through the foreach_get fallback when the loop layout is not the expected one.
+import unittest
+from unittest import mock
+
+import bmesh
+import bpy
+import numpy as np
+
+import splat_testing as st
+from raysplats import gaussian_mesh
+
+SCENE = "donut_sh0.ply"
+# How each Blender reads when nothing is wrong: positions are the "position" attribute from 3.5 on, corner vertices
+# the ".corner_vert" attribute from 3.6 on; before, MLoop structs read in place.
+POSITIONS_PATH = "attribute" if bpy.app.version >= (3, 5, 0) else "foreach_get"
+CORNERS_PATH = "attribute" if bpy.app.version >= (3, 6, 0) else "pointer"
+
+
+def foreach_get_arrays(mesh):
+    """Positions, corner vertices, face starts and sizes of `mesh` as Blender's foreach_get gives them."""
+    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", positions)
+    corners = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", corners)
+    starts, counts = (np.empty(len(mesh.polygons), dtype=np.int64) for _ in range(2))
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", counts)
+    return positions.reshape(-1, 3), corners, starts, counts
+
+
+def edit_faces(obj, faces, operator):
+    """Runs `operator` in Edit Mode with exactly `faces` selected, and returns to Object Mode."""
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.context.tool_settings.mesh_select_mode = (False, False, True)
+    bpy.ops.mesh.select_all(action="DESELECT")
+    mesh = bmesh.from_edit_mesh(obj.data)
+    mesh.faces.ensure_lookup_table()
+    for face in faces:
+        mesh.faces[face].select_set(True)
+    operator()
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+
+def evaluated_mesh(obj):
+    """The mesh the render engine reads (the evaluated object's data), after the pending updates."""
+    bpy.context.view_layer.update()
+    return obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+
+
+class MeshRead(unittest.TestCase):
+    def setUp(self):
+        st.reset_scene()
+
+    def tearDown(self):
+        gaussian_mesh._loop_layout_failed = False
+
+    def assert_reads_like_foreach_get(self, mesh, arrays, positions_path=POSITIONS_PATH, corners_path=CORNERS_PATH):
+        """`arrays` (of mesh_arrays) and each fast reader on its own equal foreach_get's arrays of `mesh`, and the
+        readers took the expected paths."""
+        expected = foreach_get_arrays(mesh)
+        for name, actual, wanted in zip(("positions", "corner vertices", "face starts", "face sizes"), arrays,
+                                        expected):
+            self.assertEqual(actual.shape, wanted.shape, name)
+            self.assertTrue(np.array_equal(actual, wanted), name)
+        positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        self.assertEqual(gaussian_mesh.read_vertex_positions(mesh, positions), positions_path)
+        self.assertTrue(np.array_equal(positions, expected[0].ravel()))
+        corners = np.empty(len(mesh.loops), dtype=gaussian_mesh._INDEX_DTYPE)
+        self.assertEqual(gaussian_mesh.read_corner_vertices(mesh, corners), corners_path)
+        self.assertTrue(np.array_equal(corners, expected[1]))
+        return expected
+
+    def test_fast_reads_equal_foreach_get_after_moving_flipping_and_deleting_faces(self):
+        obj = st.import_file(SCENE)
+        faces = len(obj.data.polygons)
+        first = gaussian_mesh.mesh_arrays(evaluated_mesh(obj))
+        self.assert_reads_like_foreach_get(evaluated_mesh(obj), first)
+
+        # Vertex positions change (the corners of face 10 move), read as the viewport does: into the arrays of an
+        # older read (`spare`, overwritten), with the face starts taken over from the read before the edit.
+        co = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+        obj.data.vertices.foreach_get("co", co)
+        co.reshape(-1, 3)[80:88] += (0.0, 0.0, 0.05)
+        obj.data.vertices.foreach_set("co", co)
+        obj.data.update()
+        spare = tuple(np.copy(a) for a in first)
+        moved = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), spare, first)
+        self.assert_reads_like_foreach_get(evaluated_mesh(obj), moved)
+        self.assertFalse(np.array_equal(moved[0], first[0]))
+        self.assertTrue(all(np.shares_memory(new, old) for new, old in zip(moved[:2], spare[:2])))
+        self.assertIs(moved[2], first[2])
+
+        # Every 5th face's corners reversed: the corners are no longer 0, 1, 2, ... as after the import, so a read of
+        # the wrong values or of the arrays from before the edit would show.
+        edit_faces(obj, range(0, faces, 5), bpy.ops.mesh.flip_normals)
+        flipped = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), first, moved)
+        expected = self.assert_reads_like_foreach_get(evaluated_mesh(obj), flipped)
+        self.assertFalse(np.array_equal(expected[1], moved[1]))
+        self.assertTrue(np.array_equal(np.sort(expected[1][:8]), moved[1][:8]))
+
+        # A face deleted: every array changes size.
+        edit_faces(obj, [3], lambda: bpy.ops.mesh.delete(type="FACE"))
+        deleted = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), moved, flipped)
+        self.assert_reads_like_foreach_get(evaluated_mesh(obj), deleted)
+        self.assertEqual(len(deleted[3]), faces - 1)
+
+    def test_empty_meshes(self):
+        empty = bpy.data.meshes.new("empty")
+        arrays = gaussian_mesh.mesh_arrays(empty)
+        self.assertEqual([a.shape for a in arrays], [(0, 3), (0,), (0,), (0,)])
+        self.assert_reads_like_foreach_get(empty, arrays, "foreach_get", "foreach_get")
+        # One corner: too few to check the loop array's layout against (foreach_get reads it), which is no reason
+        # to give up the fast path for the next mesh.
+        single = bpy.data.meshes.new("single corner")
+        single.vertices.add(1)
+        single.loops.add(1)
+        single.polygons.add(1)
+        single.polygons[0].loop_start = 0
+        if bpy.app.version < (4, 0, 0):
+            single.polygons[0].loop_total = 1
+        arrays = gaussian_mesh.mesh_arrays(single)
+        self.assertEqual([a.shape for a in arrays], [(1, 3), (1,), (1,), (1,)])
+        self.assert_reads_like_foreach_get(single, arrays, POSITIONS_PATH,
+                                           "attribute" if CORNERS_PATH == "attribute" else "foreach_get")
+        obj = st.import_file(SCENE)
+        self.assert_reads_like_foreach_get(obj.data, gaussian_mesh.mesh_arrays(obj.data))
+
+    def test_foreach_get_reads_when_the_loop_layout_check_fails(self):
+        obj = st.import_file(SCENE)
+        # All faces reversed: now no corner's vertex index equals its edge index (both were the corner's own index
+        # after the import), so reading the wrong field of 3.x's MLoop {v, e} gives wrong values.
+        edit_faces(obj, range(len(obj.data.polygons)), bpy.ops.mesh.flip_normals)
+        mesh = obj.data
+        expected = foreach_get_arrays(mesh)[1]
+
+        def read():
+            corners = np.empty(len(mesh.loops), dtype=gaussian_mesh._INDEX_DTYPE)
+            path = gaussian_mesh.read_corner_vertices(mesh, corners)
+            self.assertTrue(np.array_equal(corners, expected), path)
+            return path
+
+        # The loop array in place is also what 4.x reads when the attribute is missing.
+        with mock.patch.object(gaussian_mesh, "_CORNER_VERT_ATTRIBUTE", "no such attribute"):
+            self.assertEqual(read(), "pointer")
+            with mock.patch.object(gaussian_mesh, "_LOOP_STRIDE", gaussian_mesh._LOOP_STRIDE + 4):
+                self.assertEqual(read(), "foreach_get")
+            self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
+            gaussian_mesh._loop_layout_failed = False
+            self.assertEqual(read(), "pointer")
+            # The vertex index looked for 4 bytes into each element: 3.x's MLoop.e, which only the spot checks
+            # catch (the stride is right); on 4.x past the 4-byte element.
+            with mock.patch.object(gaussian_mesh, "_LOOP_VERTEX_OFFSET", 4):
+                self.assertEqual(read(), "foreach_get")
+            self.assertTrue(gaussian_mesh._loop_layout_failed)
