@@ -220,6 +220,7 @@ int main(int argc, char** argv) {
         st.jitter = false;
         st.transparent_background = true;
         if (const char* k = std::getenv("RAYSPLATS_BENCH_K")) st.gather_buffer_size = std::atoi(k);
+        if (const char* t = std::getenv("RAYSPLATS_BENCH_TILE")) st.tile_size = std::atoi(t);
         const double rays = double(width) * height;
 
         auto run = [&](const GaussianCloud& c, Compositing comp, GaussianMode mode, double& build, bool print) {
