@@ -190,59 +190,30 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
             if (ctx->mode == TraceMode::Gather) {
                 const std::uint64_t key = gather_key(geom_id, prim);
                 if (L.has_after && (t < L.after_t || (t == L.after_t && key <= L.after_key))) continue;
-                int pos;
                 const int k = L.capacity;
-                if (L.count < k) {
-                    pos = L.count++;
-                } else {
+                int last = L.count;  // index of the buffer's last hit after the insertion
+                if (L.count == k) {
                     if (!hit_before(t, key, L.hits[k - 1])) continue;
-                    L.product /= 1.0f - L.hits[k - 1].alpha;  // evicted
-                    pos = k - 1;
+                    last = k - 1;  // the last hit is dropped
                 }
+                // Insertion from the back: each shifted hit now lies behind the new one.
+                const float keep = 1.0f - alpha;
+                int pos = last;
                 while (pos > 0 && hit_before(t, key, L.hits[pos - 1])) {
                     L.hits[pos] = L.hits[pos - 1];
+                    L.prefix[pos] = L.prefix[pos - 1] * keep;
                     --pos;
                 }
                 L.hits[pos] = GatherHit{t, alpha, geom_id, prim};
-                L.product *= 1.0f - alpha;
-                int cut = -1;
-                if (L.saturated) {
-                    // The buffer ended at the first hit below the threshold, and the new hit lies in front of
-                    // (or at) that one: transmittances before `pos` are unchanged and above it, so the scan goes on
-                    // from pos with the stored prefix (the same products in the same order as a full scan).
-                    float T = pos > 0 ? L.prefix[pos - 1] : L.base_transmittance;
-                    if (pos > 0 && T < L.transmittance_threshold) {
-                        cut = pos - 1;  // the new hit is behind the cut (equal t, larger key)
-                    } else {
-                        for (int j = pos; j < L.count; ++j) {
-                            T *= 1.0f - L.hits[j].alpha;
-                            L.prefix[j] = T;
-                            if (T < L.transmittance_threshold) {
-                                cut = j;
-                                break;
-                            }
-                        }
-                    }
-                    if (cut < 0) {  // the evicted last hit took the buffer above the threshold again
-                        L.saturated = false;
-                        L.product = 1.0f;
-                        for (int j = 0; j < L.count; ++j) L.product *= 1.0f - L.hits[j].alpha;
-                    }
-                } else if (L.base_transmittance * L.product < L.transmittance_threshold) {
-                    // Exact scan for the first index where the transmittance falls below the threshold.
-                    float T = L.base_transmittance;
-                    for (int j = 0; j < L.count; ++j) {
-                        T *= 1.0f - L.hits[j].alpha;
-                        L.prefix[j] = T;
-                        if (T < L.transmittance_threshold) {
-                            cut = j;
-                            L.saturated = true;
-                            break;
-                        }
-                    }
-                }
+                L.prefix[pos] = (pos > 0 ? L.prefix[pos - 1] : L.base_transmittance) * keep;
+                L.count = last + 1;
                 float far = tfar;
-                if (cut >= 0) {
+                L.saturated = L.prefix[last] < L.transmittance_threshold;
+                if (L.saturated) {
+                    // Entries before pos - 1 are unchanged and were above the threshold (the buffer ends at the
+                    // first one below); the new hit may lie behind the cut (equal t, larger key).
+                    int cut = pos > 0 ? pos - 1 : 0;
+                    while (!(L.prefix[cut] < L.transmittance_threshold)) ++cut;
                     L.count = cut + 1;
                     far = L.hits[cut].t;
                 } else if (L.count == k) {

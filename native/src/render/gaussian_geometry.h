@@ -146,18 +146,19 @@ struct LaneState {
     int count = 0;
     int capacity = 48;  // k, <= kGatherCapacity
     GatherHit hits[kGatherCapacity];
-    // product = prod over the buffer of (1 - alpha), order-independent, kept incrementally. When
-    // base_transmittance * product drops below the threshold, the buffer is scanned for the first i where
-    // base * prod_{j <= i} (1 - alpha_j) does: the true transmittance there is lower still (unseen hits can only
-    // lower it), so everything behind hits[i] is irrelevant: the buffer is cut there and tfar shrinks to hits[i].t.
-    // Exact, and it bounds the traversal depth like an opaque hit would.
-    float product = 1.0f;
-    float base_transmittance = 1.0f;
-    // After the first cut: the buffer ends at the first hit where the transmittance falls below the threshold,
-    // and prefix[j] = base * prod_{i <= j} (1 - alpha_i) is valid for every hit in it, so a later insertion at
-    // position p rescans only from p (a full rescan per insertion was about 13 % of a sorted frame).
-    bool saturated = false;
+    // prefix[j] ~ base_transmittance * prod_{i <= j} (1 - alpha_i): the transmittance behind hit j. An insertion at
+    // p multiplies the entries it shifts by the new hit's (1 - alpha) in the same pass, so no serial product chain
+    // is rescanned (that and the shift were a fifth of the sorted callback). The floats can differ from the
+    // sequential product in the last bits; they only decide where the buffer is cut, and compositing, which
+    // multiplies sequentially, never relies on them (see `saturated`).
+    // The buffer ends at the first hit where prefix falls below the threshold: everything behind it is irrelevant
+    // (unseen hits can only lower the transmittance), so tfar shrinks to its t: it bounds the traversal depth like
+    // an opaque hit would.
     float prefix[kGatherCapacity];
+    float base_transmittance = 1.0f;
+    // The buffer was cut (prefix fell below the threshold). If compositing the buffer then does not terminate (the
+    // approximate prefix was early by a rounding), the ray goes on behind its last hit.
+    bool saturated = false;
     // Stochastic: random seed of this ray.
     std::uint32_t seed = 0;
     // Statistics: Gaussian tests (group members) and group callbacks (bounding-box candidates) of the traversal.
