@@ -527,6 +527,19 @@ private:
     glm::vec3 world_;
 };
 
+// The end of the camera segment a tile already knows near pixel (x, y) (tile coordinates) of the 4 x 4 packet at
+// (bx, by): the pixel's own in the previous sample; in the first, the larger of its neighbours' in the packets above
+// and to the left; +inf when there is none (the tile's first packet, or a neighbour whose segment escaped).
+float known_segment_end(const std::vector<float>& segment_end, int tile_width, int x, int y, int bx, int by,
+                        int sample) {
+    if (sample > 0) return segment_end[std::size_t(y) * tile_width + x];
+    if (by == 0 && bx == 0) return kInf;
+    float known = 0.0f;
+    if (by > 0) known = std::max(known, segment_end[std::size_t(by - 1) * tile_width + x]);
+    if (bx > 0) known = std::max(known, segment_end[std::size_t(y) * tile_width + (bx - 1)]);
+    return known;
+}
+
 }  // namespace
 
 Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, const ProgressCallback& progress,
@@ -613,17 +626,10 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                             const int x = bx + (l & 3), y = by + (l >> 2);
                             ends[l] = kInf;
                             if (!active[l] || !speculate) continue;
-                            // The pixel's own end in the previous sample; in the first, its neighbours' in the packets
-                            // above and to the left (the largest), when the tile has them.
-                            float known = kInf;
-                            if (sample > 0) {
-                                known = segment_end[std::size_t(y - y0) * tw + (x - x0)];
-                            } else if (by > y0 || bx > x0) {
-                                known = 0.0f;
-                                if (by > y0) known = std::max(known, segment_end[std::size_t(by - 1 - y0) * tw + (x - x0)]);
-                                if (bx > x0) known = std::max(known, segment_end[std::size_t(y - y0) * tw + (bx - 1 - x0)]);
-                            }
-                            ends[l] = known * kSpeculativeMargin;
+                            const float known = known_segment_end(segment_end, tw, x - x0, y - y0, bx - x0, by - y0,
+                                                                  sample);
+                            // (Not before the ray's own start: neighbours' clip starts differ.)
+                            if (known * kSpeculativeMargin > rays[l].tmin) ends[l] = known * kSpeculativeMargin;
                         }
                         integrator.trace_packet(rays, active, ends, rngs, segs, counters);
                         for (int l = 0; l < 16; ++l)
