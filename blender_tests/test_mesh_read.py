@@ -107,6 +107,70 @@ class MeshRead(unittest.TestCase):
         self.assert_reads_like_foreach_get(evaluated_mesh(obj), deleted)
         self.assertEqual(len(deleted[3]), faces - 1)
 
+    def test_evaluated_geometry_is_read_from_the_datablock_only_where_evaluation_leaves_it_as_is(self):
+        """gaussian_mesh.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
+        evaluated Mesh datablock (no copy); one with shape keys, a modifier or a deforming parent from its evaluated
+        mesh. Either way what is read is the evaluated mesh's geometry and attributes, also right after an edit."""
+        shortcut = bpy.app.version < (3, 6, 0)
+        obj = st.import_file(SCENE)
+        original = foreach_get_arrays(obj.data)[0]
+
+        def read():
+            """(read from the datablock?, positions, opacities) of `obj`, checked against the evaluated mesh's."""
+            bpy.context.view_layer.update()
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            evaluated = obj.evaluated_get(depsgraph)
+            mesh = gaussian_mesh.evaluated_mesh(evaluated, depsgraph)
+            arrays = gaussian_mesh.mesh_arrays(mesh)
+            attributes = gaussian_mesh.face_attributes(mesh, 0)
+            for actual, wanted in zip(arrays, foreach_get_arrays(evaluated.data)):
+                self.assertTrue(np.array_equal(actual, wanted))
+            opacities = np.empty(len(evaluated.data.polygons), dtype=np.float32)
+            evaluated.data.attributes[gaussian_mesh.ATTR_OPACITY].data.foreach_get("value", opacities)
+            self.assertTrue(np.array_equal(attributes["opacity"], opacities))
+            return mesh == obj.data.evaluated_get(depsgraph), arrays[0], attributes["opacity"]
+
+        from_datablock, positions, _ = read()
+        self.assertEqual(from_datablock, shortcut)
+        self.assertTrue(np.array_equal(positions, original))
+        # Positions and an attribute edited in one update.
+        co = original.copy()
+        co[80:88] += (0.0, 0.0, 0.05)
+        obj.data.vertices.foreach_set("co", co.ravel())
+        obj.data.attributes[gaussian_mesh.ATTR_OPACITY].data[7].value = 0.02
+        obj.data.update()
+        from_datablock, positions, opacities = read()
+        self.assertEqual(from_datablock, shortcut)
+        self.assertTrue(np.array_equal(positions, co))
+        self.assertEqual(float(opacities[7]), np.float32(0.02))
+
+        # Evaluation that moves the vertices: the datablock's positions would be stale.
+        obj.shape_key_add(name="Basis")
+        lift = obj.shape_key_add(name="Lift")
+        lift.data.foreach_set("co", (co + (0.0, 0.0, 0.1)).ravel())
+        lift.value = 1.0
+        from_datablock, positions, _ = read()
+        self.assertFalse(from_datablock)
+        self.assertTrue(np.allclose(positions, co + (0.0, 0.0, 0.1)))
+        obj.shape_key_clear()
+        self.assertEqual(read()[0], shortcut)
+
+        displace = obj.modifiers.new("Displace", "DISPLACE")
+        from_datablock, positions, _ = read()
+        self.assertFalse(from_datablock)
+        self.assertFalse(np.allclose(positions, co))
+        obj.modifiers.remove(displace)
+        self.assertEqual(read()[0], shortcut)
+
+        # Parenting with deformation (Blender's PARSKEL, as older files have it; the Parent operators add a modifier
+        # instead) stands for a virtual deform modifier: the evaluated mesh is read.
+        lattice = bpy.data.objects.new("Lattice", bpy.data.lattices.new("Lattice"))
+        bpy.context.scene.collection.objects.link(lattice)
+        obj.parent, obj.parent_type = lattice, "LATTICE"
+        self.assertFalse(read()[0])
+        obj.parent_type = "OBJECT"
+        self.assertEqual(read()[0], shortcut)
+
     def test_empty_meshes(self):
         empty = bpy.data.meshes.new("empty")
         arrays = gaussian_mesh.mesh_arrays(empty)
