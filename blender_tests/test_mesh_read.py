@@ -1,6 +1,6 @@
-# Reading a Gaussian mesh back (gaussian_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop array
-# in place on 3.x) give exactly what Blender's own foreach_get gives, after edits of the positions and of the
-# topology, on empty meshes, and through the foreach_get fallback when the loop layout is not the expected one.
+# Reading a Gaussian mesh back (gaussian_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop and face
+# arrays in place) give exactly what Blender's own foreach_get gives, after edits of the positions and of the
+# topology, on empty meshes, and through the foreach_get fallback when the loop or face layout is not the expected one.
 import unittest
 from unittest import mock
 
@@ -16,6 +16,7 @@ SCENE = "donut_sh0.ply"
 # the ".corner_vert" attribute from 3.6 on; before, MLoop structs read in place.
 POSITIONS_PATH = "attribute" if bpy.app.version >= (3, 5, 0) else "foreach_get"
 CORNERS_PATH = "attribute" if bpy.app.version >= (3, 6, 0) else "pointer"
+FACES_PATH = "pointer"  # MPoly structs before 3.6, the face offsets from then on, in place
 
 
 def foreach_get_arrays(mesh):
@@ -56,8 +57,10 @@ class MeshRead(unittest.TestCase):
 
     def tearDown(self):
         gaussian_mesh._loop_layout_failed = False
+        gaussian_mesh._face_layout_failed = False
 
-    def assert_reads_like_foreach_get(self, mesh, arrays, positions_path=POSITIONS_PATH, corners_path=CORNERS_PATH):
+    def assert_reads_like_foreach_get(self, mesh, arrays, positions_path=POSITIONS_PATH, corners_path=CORNERS_PATH,
+                                      faces_path=FACES_PATH):
         """`arrays` (of mesh_arrays) and each fast reader on its own equal foreach_get's arrays of `mesh`, and the
         readers took the expected paths."""
         expected = foreach_get_arrays(mesh)
@@ -71,6 +74,9 @@ class MeshRead(unittest.TestCase):
         corners = np.empty(len(mesh.loops), dtype=gaussian_mesh._INDEX_DTYPE)
         self.assertEqual(gaussian_mesh.read_corner_vertices(mesh, corners), corners_path)
         self.assertTrue(np.array_equal(corners, expected[1]))
+        starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
+        self.assertEqual(gaussian_mesh.read_face_corners(mesh, sizes, starts), faces_path)
+        self.assertTrue(np.array_equal(starts, expected[2]) and np.array_equal(sizes, expected[3]))
         return expected
 
     def test_fast_reads_equal_foreach_get_after_moving_flipping_and_deleting_faces(self):
@@ -107,11 +113,82 @@ class MeshRead(unittest.TestCase):
         self.assert_reads_like_foreach_get(evaluated_mesh(obj), deleted)
         self.assertEqual(len(deleted[3]), faces - 1)
 
+        # Faces 20 and 21 triangulated: faces of 3 corners among those of 8, so the starts no longer step by 8.
+        edit_faces(obj, [20, 21], lambda: bpy.ops.mesh.quads_convert_to_tris(ngon_method="BEAUTY"))
+        triangulated = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), flipped, deleted)
+        expected = self.assert_reads_like_foreach_get(evaluated_mesh(obj), triangulated)
+        self.assertEqual(len(triangulated[3]), faces - 1 + 2 * 5)
+        self.assertEqual(set(expected[3].tolist()), {3, 8})
+
+    def test_evaluated_geometry_is_read_from_the_datablock_only_where_evaluation_leaves_it_as_is(self):
+        """gaussian_mesh.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
+        evaluated Mesh datablock (no copy); one with shape keys, a modifier or a deforming parent from its evaluated
+        mesh. Either way what is read is the evaluated mesh's geometry and attributes, also right after an edit."""
+        shortcut = bpy.app.version < (3, 6, 0)
+        obj = st.import_file(SCENE)
+        original = foreach_get_arrays(obj.data)[0]
+
+        def read():
+            """(read from the datablock?, positions, opacities) of `obj`, checked against the evaluated mesh's."""
+            bpy.context.view_layer.update()
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            evaluated = obj.evaluated_get(depsgraph)
+            mesh = gaussian_mesh.evaluated_mesh(evaluated, depsgraph)
+            arrays = gaussian_mesh.mesh_arrays(mesh)
+            attributes = gaussian_mesh.face_attributes(mesh, 0)
+            for actual, wanted in zip(arrays, foreach_get_arrays(evaluated.data)):
+                self.assertTrue(np.array_equal(actual, wanted))
+            opacities = np.empty(len(evaluated.data.polygons), dtype=np.float32)
+            evaluated.data.attributes[gaussian_mesh.ATTR_OPACITY].data.foreach_get("value", opacities)
+            self.assertTrue(np.array_equal(attributes["opacity"], opacities))
+            return mesh == obj.data.evaluated_get(depsgraph), arrays[0], attributes["opacity"]
+
+        from_datablock, positions, _ = read()
+        self.assertEqual(from_datablock, shortcut)
+        self.assertTrue(np.array_equal(positions, original))
+        # Positions and an attribute edited in one update.
+        co = original.copy()
+        co[80:88] += (0.0, 0.0, 0.05)
+        obj.data.vertices.foreach_set("co", co.ravel())
+        obj.data.attributes[gaussian_mesh.ATTR_OPACITY].data[7].value = 0.02
+        obj.data.update()
+        from_datablock, positions, opacities = read()
+        self.assertEqual(from_datablock, shortcut)
+        self.assertTrue(np.array_equal(positions, co))
+        self.assertEqual(float(opacities[7]), np.float32(0.02))
+
+        # Evaluation that moves the vertices: the datablock's positions would be stale.
+        obj.shape_key_add(name="Basis")
+        lift = obj.shape_key_add(name="Lift")
+        lift.data.foreach_set("co", (co + (0.0, 0.0, 0.1)).ravel())
+        lift.value = 1.0
+        from_datablock, positions, _ = read()
+        self.assertFalse(from_datablock)
+        self.assertTrue(np.allclose(positions, co + (0.0, 0.0, 0.1)))
+        obj.shape_key_clear()
+        self.assertEqual(read()[0], shortcut)
+
+        displace = obj.modifiers.new("Displace", "DISPLACE")
+        from_datablock, positions, _ = read()
+        self.assertFalse(from_datablock)
+        self.assertFalse(np.allclose(positions, co))
+        obj.modifiers.remove(displace)
+        self.assertEqual(read()[0], shortcut)
+
+        # Parenting with deformation (Blender's PARSKEL, as older files have it; the Parent operators add a modifier
+        # instead) stands for a virtual deform modifier: the evaluated mesh is read.
+        lattice = bpy.data.objects.new("Lattice", bpy.data.lattices.new("Lattice"))
+        bpy.context.scene.collection.objects.link(lattice)
+        obj.parent, obj.parent_type = lattice, "LATTICE"
+        self.assertFalse(read()[0])
+        obj.parent_type = "OBJECT"
+        self.assertEqual(read()[0], shortcut)
+
     def test_empty_meshes(self):
         empty = bpy.data.meshes.new("empty")
         arrays = gaussian_mesh.mesh_arrays(empty)
         self.assertEqual([a.shape for a in arrays], [(0, 3), (0,), (0,), (0,)])
-        self.assert_reads_like_foreach_get(empty, arrays, "foreach_get", "foreach_get")
+        self.assert_reads_like_foreach_get(empty, arrays, "foreach_get", "foreach_get", "foreach_get")
         # One corner: too few to check the loop array's layout against (foreach_get reads it), which is no reason
         # to give up the fast path for the next mesh.
         single = bpy.data.meshes.new("single corner")
@@ -124,7 +201,7 @@ class MeshRead(unittest.TestCase):
         arrays = gaussian_mesh.mesh_arrays(single)
         self.assertEqual([a.shape for a in arrays], [(1, 3), (1,), (1,), (1,)])
         self.assert_reads_like_foreach_get(single, arrays, POSITIONS_PATH,
-                                           "attribute" if CORNERS_PATH == "attribute" else "foreach_get")
+                                           "attribute" if CORNERS_PATH == "attribute" else "foreach_get", "foreach_get")
         obj = st.import_file(SCENE)
         self.assert_reads_like_foreach_get(obj.data, gaussian_mesh.mesh_arrays(obj.data))
 
@@ -155,3 +232,32 @@ class MeshRead(unittest.TestCase):
             with mock.patch.object(gaussian_mesh, "_LOOP_VERTEX_OFFSET", 4):
                 self.assertEqual(read(), "foreach_get")
             self.assertTrue(gaussian_mesh._loop_layout_failed)
+
+    def test_foreach_get_reads_when_the_face_layout_check_fails(self):
+        obj = st.import_file(SCENE)
+        # Faces 20 and 21 triangulated, so that the face sizes are not all alike.
+        edit_faces(obj, [20, 21], lambda: bpy.ops.mesh.quads_convert_to_tris(ngon_method="BEAUTY"))
+        mesh = obj.data
+        expected = foreach_get_arrays(mesh)[2:]
+
+        def read():
+            starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
+            path = gaussian_mesh.read_face_corners(mesh, sizes, starts)
+            self.assertTrue(np.array_equal(starts, expected[0]) and np.array_equal(sizes, expected[1]), path)
+            return path
+
+        self.assertEqual(read(), "pointer")
+        with mock.patch.object(gaussian_mesh, "_FACE_STRIDE", gaussian_mesh._FACE_STRIDE + 4):
+            self.assertEqual(read(), "foreach_get")
+        self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
+        gaussian_mesh._face_layout_failed = False
+        self.assertEqual(read(), "pointer")
+        # The face's size looked for in the wrong field: 3.x's MPoly.loopstart, which only the spot checks catch (the
+        # stride is right); from 3.6 on the offsets themselves taken for sizes.
+        with mock.patch.object(gaussian_mesh, "_FACE_SIZE_OFFSET", 0):
+            self.assertEqual(read(), "foreach_get")
+        self.assertTrue(gaussian_mesh._face_layout_failed)
+        gaussian_mesh._face_layout_failed = False
+        # The first corner looked for 4 bytes in: 3.x's MPoly.totloop, past the 4-byte element from 3.6 on.
+        with mock.patch.object(gaussian_mesh, "_FACE_START_OFFSET", 4):
+            self.assertEqual(read(), "foreach_get")

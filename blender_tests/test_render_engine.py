@@ -306,6 +306,46 @@ class RenderEngine(unittest.TestCase):
         self.assertEqual(stats.triangles, 3 * 48)
         self.assertEqual(stats.splats, 2 * len(splats.data.polygons))
 
+    def test_viewport_edit_of_a_shape_keyed_object_shows_its_evaluated_geometry(self):
+        """A shape key's value changed: the viewport's update reads the geometry with the key applied (the object's
+        evaluated mesh, not its Mesh datablock, which keeps the basis), as a scene built from scratch does."""
+        from raysplats.engine import sync
+        scene = new_scene()
+        splats = add_donut((0, 0, 0))
+        add_camera((0.0, -0.6, 0.0), (0, 1, 0))
+        co = np.empty(len(splats.data.vertices) * 3, dtype=np.float32)
+        splats.data.vertices.foreach_get("co", co)
+        splats.shape_key_add(name="Basis")
+        lift = splats.shape_key_add(name="Lift")
+        lift.data.foreach_set("co", (co.reshape(-1, 3) + (0.0, 0.0, 0.03)).ravel())
+        bpy.context.view_layer.update()
+        live = sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
+        live.render_scene.build("FLAT")
+        changes = []
+
+        def handler(scene_, depsgraph_):
+            changes.append(live.update(depsgraph_))
+
+        core = st.native()
+
+        def image(scene_sync):
+            settings = sync.render_settings(scene, 96, 72, 2)
+            settings["compositing"] = "SORTED"
+            camera = sync.camera_settings(scene, scene.camera, 96, 72)
+            return core.RenderJob(scene_sync.render_scene, camera, settings).result()["rgba"]
+
+        before = image(live)
+        bpy.app.handlers.depsgraph_update_post.append(handler)
+        try:
+            lift.value = 1.0
+            bpy.context.view_layer.update()
+        finally:
+            bpy.app.handlers.depsgraph_update_post.remove(handler)
+        self.assertEqual(changes, ["updated"])
+        after = image(live)
+        self.assertLessEqual(float(np.abs(after - image(fresh_sync())).max()), 1e-6)
+        self.assertGreater(float(np.abs(after - before).max()), 1e-3)
+
     def test_viewport_edits_recover_only_the_edited_splats_and_render_like_a_fresh_scene(self):
         from raysplats.engine import sync
         scene = new_scene()
@@ -333,8 +373,8 @@ class RenderEngine(unittest.TestCase):
 
         def images(reference=None):
             """Sorted and stochastic renders of `live` and of the reference (by default a scene built from scratch
-            from the same data)."""
-            reference = reference or sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
+            from the same data, read from the evaluated meshes: see fresh_sync)."""
+            reference = reference or fresh_sync()
             out = []
             for compositing in ("SORTED", "STOCHASTIC"):
                 settings = sync.render_settings(scene, 96, 72, 2)
@@ -408,6 +448,16 @@ class RenderEngine(unittest.TestCase):
         self.assertTrue(job.wait(1.0))
         self.assertLess(time.perf_counter() - start, 0.5)
         self.assertTrue(job.result()["cancelled"])
+
+
+def fresh_sync():
+    """An interactive SceneSync built from scratch from the current depsgraph, reading every Gaussian object from its
+    evaluated mesh (not through gaussian_mesh.evaluated_mesh's datablock shortcut, whose reads it checks)."""
+    from unittest import mock
+    from raysplats import gaussian_mesh
+    from raysplats.engine import sync
+    with mock.patch.object(gaussian_mesh, "_EVALUATED_MESH_COPIES_ON_READ", False):
+        return sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
 
 
 def bpy_extras_world_to_camera(scene, camera, point):

@@ -158,9 +158,10 @@ class SceneSync:
             if self._warn:
                 self._warn(message)
 
-    def _read(self, obj, reuse=None, previous=None):
-        """The mesh arrays, face attributes and settings of an evaluated Gaussian object (a _CloudSource); `reuse`:
-        an earlier _CloudSource whose arrays may be overwritten; `previous`: the object's last _CloudSource."""
+    def _read(self, obj, depsgraph, reuse=None, previous=None):
+        """The mesh arrays, face attributes and settings of an evaluated Gaussian object (a _CloudSource); `depsgraph`:
+        the one it was evaluated in, None for an instance; `reuse`: an earlier _CloudSource whose arrays may be
+        overwritten; `previous`: the object's last _CloudSource."""
         settings = obj.raysplats
         key = (settings.vertices_per_polygon, settings.radius, settings.sh_degree)
         arrays, attributes = (reuse.arrays, reuse.attributes) if reuse else (None, None)
@@ -176,7 +177,8 @@ class SceneSync:
                 return read(obj.to_mesh())
             finally:
                 obj.to_mesh_clear()
-        return read(obj.data)
+        # (An instance's object is not necessarily the evaluated object of its datablock: read its own mesh.)
+        return read(obj.data if depsgraph is None else gaussian_mesh.evaluated_mesh(obj, depsgraph))
 
     def _recover(self, obj, source, faces=None):
         """Gaussians of an evaluated Gaussian object (all, or `faces`), in its own frame."""
@@ -194,13 +196,13 @@ class SceneSync:
         else:
             self.sources.pop(uid, None)
 
-    def _update_cloud(self, uid, obj, matrix):
+    def _update_cloud(self, uid, obj, matrix, depsgraph):
         """Applies an edit of a Gaussian object to its native cloud: only the changed faces when the topology is
         the same, else the whole object. False when the object has no Gaussians left (the caller rebuilds)."""
         index, count = self.clouds[uid]
         previous = self.sources.get(uid)
         # Read into the arrays of the source before `previous` (no longer needed), if there is one.
-        source = self._read(obj, self.spare_sources.pop(uid, None), previous)
+        source = self._read(obj, depsgraph, self.spare_sources.pop(uid, None), previous)
         faces = previous.changed_faces(self.core, source) if previous else None
         if faces is not None and len(faces) <= PARTIAL_RECOVERY_LIMIT * count:
             part = self._recover(obj, source, faces) if len(faces) else None
@@ -234,7 +236,7 @@ class SceneSync:
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
-                source = self._read(obj)
+                source = self._read(obj, None if instance.is_instance else depsgraph)
                 cloud = self._recover(obj, source)
                 if len(cloud["opacities"]):
                     index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
@@ -318,7 +320,7 @@ class SceneSync:
             if uid in self.clouds:
                 if not update.is_updated_geometry:
                     self.render_scene.set_gaussians_matrix(self.clouds[uid][0], matrix)
-                elif not self._update_cloud(uid, data, matrix):
+                elif not self._update_cloud(uid, data, matrix, depsgraph):
                     return "rebuild"
                 result = "updated"
             elif uid in self.meshes:
