@@ -52,27 +52,50 @@ void Camera::validate() const {
 }
 
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
+    return CameraRayGenerator(c, width, height)(x, y);
+}
+
+CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
+    : camera_(c), width_(float(width)), height_(float(height)) {
+    const float w = width_, h = height_;
+    for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) linear_[3 * r + k] = c.camera_to_world(r, k);
+        translation_[r] = c.camera_to_world(r, 3);
+    }
+    if (c.type == CameraType::Perspective || c.type == CameraType::Orthographic) {
+        // Full extent of the fitted dimension: in tan units (sensor / lens) or in scene units (ortho scale).
+        extent_ = c.type == CameraType::Perspective ? fitted_sensor(c) / c.focal_length_mm : c.ortho_scale;
+        if (horizontal_fit(c, width, height)) {
+            half_w_ = 0.5f * extent_;
+            half_h_ = half_w_ * h / w;
+        } else {
+            half_h_ = 0.5f * extent_;
+            half_w_ = half_h_ * w / h;
+        }
+    } else if (c.type == CameraType::FisheyeEquisolid) {
+        if (horizontal_fit(c, width, height)) {
+            sensor_w_ = fitted_sensor(c);
+            sensor_h_ = sensor_w_ * h / w;
+        } else {
+            sensor_h_ = fitted_sensor(c);
+            sensor_w_ = sensor_h_ * w / h;
+        }
+    }
+}
+
+CameraRay CameraRayGenerator::operator()(float x, float y) const {
+    const Camera& c = camera_;
     CameraRay ray{};
     ray.valid = true;
-    const float w = float(width), h = float(height);
+    const float w = width_, h = height_;
     glm::vec3 org(0.0f), dir(0.0f, 0.0f, -1.0f);
     float t_min = c.clip_start, t_max = c.clip_end;
 
     switch (c.type) {
         case CameraType::Perspective:
         case CameraType::Orthographic: {
-            // Full extent of the fitted dimension: in tan units (sensor / lens) or in scene units (ortho scale).
-            const float extent = c.type == CameraType::Perspective ? fitted_sensor(c) / c.focal_length_mm : c.ortho_scale;
-            float half_w, half_h;
-            if (horizontal_fit(c, width, height)) {
-                half_w = 0.5f * extent;
-                half_h = half_w * h / w;
-            } else {
-                half_h = 0.5f * extent;
-                half_w = half_h * w / h;
-            }
-            const float px = (2.0f * x / w - 1.0f) * half_w + c.shift_x * extent;
-            const float py = (1.0f - 2.0f * y / h) * half_h + c.shift_y * extent;
+            const float px = (2.0f * x / w - 1.0f) * half_w_ + c.shift_x * extent_;
+            const float py = (1.0f - 2.0f * y / h) * half_h_ + c.shift_y * extent_;
             if (c.type == CameraType::Perspective) {
                 dir = glm::vec3(px, py, -1.0f);
                 const float len = glm::length(dir);
@@ -107,15 +130,7 @@ CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, f
         }
         case CameraType::FisheyeEquisolid: {
             // Cycles fisheye_equisolid_to_direction: position on the fitted sensor in mm, r = 2 f sin(theta / 2).
-            float sw, sh;
-            if (horizontal_fit(c, width, height)) {
-                sw = fitted_sensor(c);
-                sh = sw * h / w;
-            } else {
-                sh = fitted_sensor(c);
-                sw = sh * w / h;
-            }
-            const float u = (x / w - 0.5f) * sw, v = (0.5f - y / h) * sh;
+            const float u = (x / w - 0.5f) * sensor_w_, v = (0.5f - y / h) * sensor_h_;
             const float r = std::sqrt(u * u + v * v);
             const float s = r / (2.0f * c.fisheye_lens_mm);
             if (s > 1.0f) {
@@ -133,9 +148,12 @@ CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, f
         }
     }
 
-    const glm::mat3 a = linear_part(c.camera_to_world);
-    const glm::vec3 o = a * org + translation_part(c.camera_to_world);
-    glm::vec3 d = a * dir;
+    const float* a = linear_;
+    const glm::vec3 o(a[0] * org.x + a[1] * org.y + a[2] * org.z + translation_[0],
+                      a[3] * org.x + a[4] * org.y + a[5] * org.z + translation_[1],
+                      a[6] * org.x + a[7] * org.y + a[8] * org.z + translation_[2]);
+    glm::vec3 d(a[0] * dir.x + a[1] * dir.y + a[2] * dir.z, a[3] * dir.x + a[4] * dir.y + a[5] * dir.z,
+                a[6] * dir.x + a[7] * dir.y + a[8] * dir.z);
     const float dl = glm::length(d);
     d /= dl;
     // A scaled camera matrix scales distances too: keep the clip range in world units along the ray.

@@ -556,6 +556,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
     const int tile_count = tiles_x * tiles_y;
     Integrator integrator(impl, settings);
+    const CameraRayGenerator camera_rays(camera, w, h);
     std::atomic<int> tiles_done{0};
     std::atomic<bool> cancelled{false};
     std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0}, group_candidates{0};
@@ -614,7 +615,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                                 jx = rngs[l].next();
                                 jy = rngs[l].next();
                             }
-                            const CameraRay cr = generate_camera_ray(camera, w, h, x + jx, y + jy);
+                            const CameraRay cr = camera_rays(x + jx, y + jy);
                             if (!cr.valid) continue;
                             rays[l] = Ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
                                           glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};

@@ -59,4 +59,21 @@ struct CameraRay {
 // (i + 0.5, j + 0.5). The film stores rows top to bottom in the same way.
 CameraRay generate_camera_ray(const Camera& camera, int width, int height, float x, float y);
 
+// generate_camera_ray for the many rays of one image, with what depends only on the camera and the image size
+// (sensor fit, extents, the camera matrix) worked out once: the same rays, bit for bit.
+class CameraRayGenerator {
+public:
+    CameraRayGenerator(const Camera& camera, int width, int height);
+    CameraRay operator()(float x, float y) const;
+
+private:
+    Camera camera_;
+    float width_, height_;
+    float linear_[9];        // camera_to_world's linear part, row-major
+    float translation_[3];
+    float extent_ = 0.0f;    // perspective: fitted sensor / focal length; orthographic: ortho scale
+    float half_w_ = 0.0f, half_h_ = 0.0f;  // perspective/orthographic: half image extents
+    float sensor_w_ = 0.0f, sensor_h_ = 0.0f;  // equisolid fisheye: the fitted sensor (mm)
+};
+
 }  // namespace raysplats
