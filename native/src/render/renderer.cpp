@@ -387,7 +387,7 @@ public:
     // non-delta BSDF with that pdf and the light's emission is weighted against next-event estimation.
     Segment trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf, const glm::vec3& beta,
                               glm::vec3& radiance, Sampler& rng, Counters& c) const {
-        LightHit lh;
+        LightHit lh{};  // (set by nearest_light_hit; initialised for GCC's maybe-uninitialized)
         if (s_.lights.empty() || nearest_light_hit(ray, lh) < 0) return first ? *first : trace(ray, rng, c);
         if (first && (first->mesh || first->terminated) && first->t < lh.t) return *first;
         Ray near = ray;
