@@ -23,31 +23,13 @@
 #include <utility>
 #include <vector>
 
+#include "raysplats/default_init_allocator.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/polygon_bridge.h"
 
 namespace raysplats {
 
-// std::allocator whose resize() leaves new elements uninitialised, so that the multi-threaded fill of a large
-// export mesh is what first touches its pages (in parallel) instead of a single-threaded zeroing pass.
-template <typename T>
-struct DefaultInitAllocator : std::allocator<T> {
-    template <typename U>
-    struct rebind {
-        using other = DefaultInitAllocator<U>;
-    };
-    DefaultInitAllocator() = default;
-    template <typename U>
-    DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
-    template <typename U>
-    void construct(U* p) noexcept {
-        ::new (static_cast<void*>(p)) U;
-    }
-    template <typename U, typename... Args>
-    void construct(U* p, Args&&... args) {
-        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-    }
-};
+// Export arrays are filled in parallel: see DefaultInitAllocator.
 template <typename T>
 using ExportArray = std::vector<T, DefaultInitAllocator<T>>;
 
