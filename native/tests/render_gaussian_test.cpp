@@ -187,6 +187,31 @@ std::array<double, 4> reference_pixel(const GaussianCloud& cloud, bool flat, con
     return out;
 }
 
+// Random Gaussians around two emissive quads at different depths (black world): a plain one, x in [-1.5, 0.2],
+// y in [-1.5, 1.5], z = -0.3 (material 0: 0.2, 0.7, 0.4), and an instanced unit square moved to x in [-0.2, 0.8],
+// y in [-0.5, 0.5], z = 0.35 (material 1: 0.9, 0.1, 0.3). The scene shares the meshes' arrays: they live as long.
+struct TwoQuadScene {
+    TestMesh plain = make_quad_z(-1.5f, 0.2f, -1.5f, 1.5f, -0.3f, 0);
+    TestMesh inst = make_quad_z(-0.5f, 0.5f, -0.5f, 0.5f, 0.0f, 1);
+    Scene scene;
+    explicit TwoQuadScene(const GaussianCloud& cloud) {
+        inst.object_to_world = Matrix4::translation(0.3f, 0.0f, 0.35f);
+        scene.set_world(black_world());
+        scene.add_material(emissive(0.2f, 0.7f, 0.4f));
+        scene.add_material(emissive(0.9f, 0.1f, 0.3f));
+        scene.add_mesh(plain.desc());
+        scene.add_mesh(inst.desc());
+        scene.add_gaussians(cloud);
+    }
+};
+
+Camera two_quad_scene_camera() {
+    Camera cam;
+    cam.camera_to_world = Matrix4::look_at({0.3f, -0.4f, 4.0f}, {0, 0, 0}, {0, 1, 0});
+    cam.focal_length_mm = 35.0f;
+    return cam;
+}
+
 }  // namespace
 
 // Sorted gathering (k-nearest buffer, re-traced) equals sorting every hit, on random scenes with meshes between the
@@ -194,22 +219,11 @@ std::array<double, 4> reference_pixel(const GaussianCloud& cloud, bool flat, con
 TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
     for (std::uint32_t seed : {1u, 2u}) {
         const GaussianCloud cloud = random_cloud(seed, 300, 1.0f);
-        Scene scene;
-        scene.set_world(black_world());
-        scene.add_material(emissive(0.2f, 0.7f, 0.4f));
-        scene.add_material(emissive(0.9f, 0.1f, 0.3f));
-        const TestMesh plain = make_quad_z(-1.5f, 0.2f, -1.5f, 1.5f, -0.3f, 0);
-        // The same kind of quad, instanced: unit square moved to x in [-0.2, 0.8], y in [-0.5, 0.5], z = 0.35.
-        TestMesh inst = make_quad_z(-0.5f, 0.5f, -0.5f, 0.5f, 0.0f, 1);
-        inst.object_to_world = Matrix4::translation(0.3f, 0.0f, 0.35f);
-        scene.add_mesh(plain.desc());
-        scene.add_mesh(inst.desc());
-        scene.add_gaussians(cloud);
+        TwoQuadScene quad_scene(cloud);
+        Scene& scene = quad_scene.scene;
         const std::vector<RefQuad> quads = {{-1.5, 0.2, -1.5, 1.5, -0.3, {0.2, 0.7, 0.4}},
                                             {-0.2, 0.8, -0.5, 0.5, 0.35, {0.9, 0.1, 0.3}}};
-        Camera cam;
-        cam.camera_to_world = Matrix4::look_at({0.3f, -0.4f, 4.0f}, {0, 0, 0}, {0, 1, 0});
-        cam.focal_length_mm = 35.0f;
+        const Camera cam = two_quad_scene_camera();
         for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
         for (int k : {3, 48, 128}) {
             RenderSettings s = exact_settings(48, 40, mode);
@@ -242,16 +256,9 @@ TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
 TEST(RenderGaussian, SpeculativeEndsChangeNothing) {
     for (std::uint32_t seed : {3u, 4u}) {
         const GaussianCloud cloud = random_cloud(seed, 300, 1.0f);
-        Scene scene;
-        scene.set_world(black_world());
-        scene.add_material(emissive(0.2f, 0.7f, 0.4f));
-        scene.add_material(emissive(0.9f, 0.1f, 0.3f));
-        scene.add_mesh(make_quad_z(-1.5f, 0.2f, -1.5f, 1.5f, -0.3f, 0).desc());
-        scene.add_mesh(make_quad_z(-0.2f, 0.8f, -0.5f, 0.5f, 0.35f, 1).desc());
-        scene.add_gaussians(cloud);
-        Camera cam;
-        cam.camera_to_world = Matrix4::look_at({0.3f, -0.4f, 4.0f}, {0, 0, 0}, {0, 1, 0});
-        cam.focal_length_mm = 35.0f;
+        TwoQuadScene quad_scene(cloud);
+        Scene& scene = quad_scene.scene;
+        const Camera cam = two_quad_scene_camera();
         for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
             for (int k : {4, 96}) {
                 RenderSettings s = exact_settings(48, 40, mode);
@@ -268,9 +275,10 @@ TEST(RenderGaussian, SpeculativeEndsChangeNothing) {
                 EXPECT_TRUE(plain.depth == fast.depth);
                 EXPECT_TRUE(plain.normal == fast.normal);
                 EXPECT_EQ(plain.stats.gaussian_hits, fast.stats.gaussian_hits);
-                // Some guesses were too early: those rays went on alone (more traversals), and the rest saw less.
-                // Some guesses were too early and those rays went on alone (with k = 4 the buffer overflows first).
-                if (k == 96) EXPECT_GT(fast.stats.traced_rays, plain.stats.traced_rays);
+                // Some guesses were too early and those rays went on (with k = 4 the buffer overflows first).
+                if (k == 96) {
+                    EXPECT_GT(fast.stats.traced_rays, plain.stats.traced_rays);
+                }
             }
     }
 }
