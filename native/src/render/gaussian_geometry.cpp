@@ -165,25 +165,39 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
     const unsigned n = args->N;
     RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
     RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
-    alignas(32) float ts[kGroupWidth], dist2s[kGroupWidth];
-    // Active lanes (N <= 16) as a bit mask, built without branches, then visited bit by bit.
+    // Two passes over the active rays (N <= 16: rtcIntersect1 and rtcIntersect16 only). First every ray is tested
+    // against the group with no data-dependent branch in between, so that the out-of-order core overlaps the rays'
+    // tests (each a long dependency chain through a division); then the rays with candidates are visited. Testing
+    // and visiting one ray at a time serialised the tests behind the visits' unpredictable branches (a packet
+    // callback has 7.3 active rays on average, a ray test 0.53 candidates, stochastic mode). A ray's test
+    // sees the tfar it had on entry either way (only its own hits shrink it): the images are bit-identical.
+    // showroom_1.5M (bench_render, 3 interleaved rounds): stochastic frame 0.541-0.566 -> 0.495-0.496 s
+    // (0.52 -> 0.48 us CPU/ray), sorted 1.947-1.968 -> 1.755-1.766 s (1.88 -> 1.69 us CPU/ray).
+    alignas(32) float ts[16][kGroupWidth], dist2s[16][kGroupWidth];
+    unsigned masks[16];
     std::uint32_t active = 0;
     for (unsigned i = 0; i < n; ++i) active |= std::uint32_t(args->valid[i] != 0) << i;
-    for (; active; active &= active - 1) {
-        const unsigned i = unsigned(__builtin_ctz(active));
+    std::uint32_t with_candidates = 0;
+    for (std::uint32_t a = active; a; a &= a - 1) {
+        const unsigned i = unsigned(__builtin_ctz(a));
         LaneState& L = ctx->lanes[i];
         L.candidates += g.count;
         ++L.group_candidates;
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
         const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
+        masks[i] = test_group<S, Flat>(g, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), ts[i], dist2s[i]);
+        with_candidates |= std::uint32_t(masks[i] != 0) << i;
+    }
+    for (; with_candidates; with_candidates &= with_candidates - 1) {
+        const unsigned i = unsigned(__builtin_ctz(with_candidates));
+        LaneState& L = ctx->lanes[i];
         float& tfar = RTCRayN_tfar(ray, n, i);
-        unsigned mask = test_group<S, Flat>(g, o, d, RTCRayN_tnear(ray, n, i), tfar, ts, dist2s);
         // Lane by lane: a hit may shrink tfar, which culls the following lanes.
-        for (; mask; mask &= mask - 1) {
+        for (unsigned mask = masks[i]; mask; mask &= mask - 1) {
             const int lane = __builtin_ctz(mask);
-            const float t = ts[lane];
+            const float t = ts[i][lane];
             if (!(t <= tfar)) continue;
-            const float alpha = std::min(kMaxAlpha, g.opacity[lane] * std::exp(-0.5f * dist2s[lane]));
+            const float alpha = std::min(kMaxAlpha, g.opacity[lane] * std::exp(-0.5f * dist2s[i][lane]));
             if (alpha < kMinAlpha) continue;
             const std::uint32_t prim = g.first + std::uint32_t(lane);
 
