@@ -43,7 +43,8 @@ inline float u32_to_unit_float(std::uint32_t x) { return float(x >> 8) * (1.0f /
 
 // Per pixel-sample random stream: deterministic from (seed, pixel, sample), independent of threads.
 struct Sampler {
-    std::uint32_t state;
+    std::uint32_t state = 0;
+    Sampler() = default;  // a placeholder: only a seeded sampler's numbers are used
     Sampler(std::uint32_t seed, std::uint64_t pixel, std::uint32_t sample)
         : state(hash_combine(hash_combine(hash_u32(seed), std::uint32_t(pixel) ^ hash_u32(std::uint32_t(pixel >> 32))),
                              hash_u32(sample * 0x68bc21ebu + 0x2545f491u))) {}

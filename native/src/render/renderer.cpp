@@ -621,10 +621,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     for (int bx = x0; bx < x1; bx += 4) {
                         Ray rays[16];
                         bool active[16];
-                        Sampler rngs[16] = {Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
-                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
-                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0),
-                                            Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0), Sampler(0, 0, 0)};
+                        Sampler rngs[16];  // seeded below for the packet's pixels (the others are never used)
                         Segment segs[16];
                         bool any = false;
                         for (int l = 0; l < 16; ++l) {
