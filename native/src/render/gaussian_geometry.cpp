@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <string>
 
 #include <immintrin.h>
 
@@ -60,9 +62,11 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     *args->bounds_o = chunk->group_bounds[args->primID];
 }
 
-// SIMD policies for the group test: 4 lanes with SSE (the x86-64 baseline; two steps per group) or 8 with AVX2,
-// chosen at run time. Only mul/add/sub/div, sign flips and compares, in the order of the scalar formulas (no FMA):
-// both give the same floats as testing one Gaussian at a time did. (Functions with a target attribute can only be
+// SIMD policies for the group test: 4 lanes with SSE (the x86-64 baseline; two steps per group) or 8 with AVX2 and
+// FMA, chosen at run time. madd(a, b, c) = a b + c is one fused operation (one rounding) with FMA and a mul and an
+// add with SSE, so the two paths differ in the last bits of t and of the distance (each is deterministic on its
+// machine). FMA made the frames of showroom_1.5M (bench_render, 3 interleaved rounds) 2-4 % faster: stochastic
+// 0.494-0.497 -> 0.480-0.499 s, sorted 1.77-1.79 -> 1.69-1.74 s. (Functions with a target attribute can only be
 // inlined into callers with that target: see the callbacks at the end.)
 struct Sse {
     using V = __m128;
@@ -77,6 +81,7 @@ struct Sse {
     static V ne(V a, V b) { return _mm_cmpneq_ps(a, b); }
     static V and_(V a, V b) { return _mm_and_ps(a, b); }
     static V neg(V a) { return _mm_xor_ps(a, _mm_set1_ps(-0.0f)); }
+    static V madd(V a, V b, V c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }  // a b + c
     static unsigned bits(V m) { return unsigned(_mm_movemask_ps(m)); }
     static void store(float* p, V a) { _mm_store_ps(p, a); }
 };
@@ -87,18 +92,19 @@ struct Sse {
 struct Avx2 {
     using V = __m256;
     static constexpr int W = 8;
-    __attribute__((target("avx2"))) static V load(const float* p) { return _mm256_load_ps(p); }
-    __attribute__((target("avx2"))) static V set1(float s) { return _mm256_set1_ps(s); }
-    __attribute__((target("avx2"))) static V add(V a, V b) { return _mm256_add_ps(a, b); }
-    __attribute__((target("avx2"))) static V sub(V a, V b) { return _mm256_sub_ps(a, b); }
-    __attribute__((target("avx2"))) static V mul(V a, V b) { return _mm256_mul_ps(a, b); }
-    __attribute__((target("avx2"))) static V div(V a, V b) { return _mm256_div_ps(a, b); }
-    __attribute__((target("avx2"))) static V le(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
-    __attribute__((target("avx2"))) static V ne(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
-    __attribute__((target("avx2"))) static V and_(V a, V b) { return _mm256_and_ps(a, b); }
-    __attribute__((target("avx2"))) static V neg(V a) { return _mm256_xor_ps(a, _mm256_set1_ps(-0.0f)); }
-    __attribute__((target("avx2"))) static unsigned bits(V m) { return unsigned(_mm256_movemask_ps(m)); }
-    __attribute__((target("avx2"))) static void store(float* p, V a) { _mm256_store_ps(p, a); }
+    __attribute__((target("avx2,fma"))) static V load(const float* p) { return _mm256_load_ps(p); }
+    __attribute__((target("avx2,fma"))) static V set1(float s) { return _mm256_set1_ps(s); }
+    __attribute__((target("avx2,fma"))) static V add(V a, V b) { return _mm256_add_ps(a, b); }
+    __attribute__((target("avx2,fma"))) static V sub(V a, V b) { return _mm256_sub_ps(a, b); }
+    __attribute__((target("avx2,fma"))) static V mul(V a, V b) { return _mm256_mul_ps(a, b); }
+    __attribute__((target("avx2,fma"))) static V div(V a, V b) { return _mm256_div_ps(a, b); }
+    __attribute__((target("avx2,fma"))) static V le(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+    __attribute__((target("avx2,fma"))) static V ne(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
+    __attribute__((target("avx2,fma"))) static V and_(V a, V b) { return _mm256_and_ps(a, b); }
+    __attribute__((target("avx2,fma"))) static V neg(V a) { return _mm256_xor_ps(a, _mm256_set1_ps(-0.0f)); }
+    __attribute__((target("avx2,fma"))) static V madd(V a, V b, V c) { return _mm256_fmadd_ps(a, b, c); }
+    __attribute__((target("avx2,fma"))) static unsigned bits(V m) { return unsigned(_mm256_movemask_ps(m)); }
+    __attribute__((target("avx2,fma"))) static void store(float* p, V a) { _mm256_store_ps(p, a); }
 };
 
 // Exact ray test against every lane of a group: returns the mask of lanes whose support (GaussianGroup::support)
@@ -113,7 +119,7 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
     const V dx = S::set1(d.x), dy = S::set1(d.y), dz = S::set1(d.z);
     const V zero = S::set1(0.0f), lo = S::set1(tnear), hi = S::set1(tfar);
     auto dot = [](V ax, V ay, V az, V bx, V by, V bz) {
-        return S::add(S::add(S::mul(ax, bx), S::mul(ay, by)), S::mul(az, bz));
+        return S::madd(az, bz, S::madd(ay, by, S::mul(ax, bx)));
     };
     unsigned mask = 0;
     for (int h = 0; h < kGroupWidth; h += S::W) {
@@ -126,9 +132,9 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
         if (Flat) {
             const V denom = dot(r[6], r[7], r[8], dx, dy, dz);
             t = S::div(S::neg(dot(r[6], r[7], r[8], px, py, pz)), denom);
-            const V qx = S::add(px, S::mul(t, dx)), qy = S::add(py, S::mul(t, dy)), qz = S::add(pz, S::mul(t, dz));
+            const V qx = S::madd(t, dx, px), qy = S::madd(t, dy, py), qz = S::madd(t, dz, pz);
             const V u = dot(r[0], r[1], r[2], qx, qy, qz), v = dot(r[3], r[4], r[5], qx, qy, qz);
-            dist2 = S::add(S::mul(u, u), S::mul(v, v));
+            dist2 = S::madd(v, v, S::mul(u, u));
             ok = S::ne(denom, zero);
         } else {
             const V pu = dot(r[0], r[1], r[2], px, py, pz), pv = dot(r[3], r[4], r[5], px, py, pz),
@@ -137,7 +143,7 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
                     dw = dot(r[6], r[7], r[8], dx, dy, dz);
             const V d2 = dot(du, dv, dw, du, dv, dw);
             t = S::div(S::neg(dot(pu, pv, pw, du, dv, dw)), d2);
-            const V qu = S::add(pu, S::mul(t, du)), qv = S::add(pv, S::mul(t, dv)), qw = S::add(pw, S::mul(t, dw));
+            const V qu = S::madd(t, du, pu), qv = S::madd(t, dv, pv), qw = S::madd(t, dw, pw);
             dist2 = dot(qu, qv, qw, qu, qv, qw);
             ok = S::ne(d2, zero);
         }
@@ -291,11 +297,11 @@ __attribute__((flatten)) void gaussians_occluded_sse(const RTCOccludedFunctionNA
     occluded_groups<Sse, Flat>(args);
 }
 template <bool Flat>
-__attribute__((target("avx2"), flatten)) void gaussians_intersect_avx2(const RTCIntersectFunctionNArguments* args) {
+__attribute__((target("avx2,fma"), flatten)) void gaussians_intersect_avx2(const RTCIntersectFunctionNArguments* args) {
     intersect_groups<Avx2, Flat>(args);
 }
 template <bool Flat>
-__attribute__((target("avx2"), flatten)) void gaussians_occluded_avx2(const RTCOccludedFunctionNArguments* args) {
+__attribute__((target("avx2,fma"), flatten)) void gaussians_occluded_avx2(const RTCOccludedFunctionNArguments* args) {
     occluded_groups<Avx2, Flat>(args);
 }
 
@@ -524,7 +530,9 @@ void GaussianSet::update_geometry(GaussianChunk& chunk) const {
 }
 
 RTCGeometry GaussianSet::create_geometry(RTCDevice device, GaussianChunk& chunk) const {
-    static const bool avx2 = __builtin_cpu_supports("avx2");
+    // RAYSPLATS_SIMD=sse forces the baseline path (the test suite runs the render tests both ways).
+    static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+                             !(std::getenv("RAYSPLATS_SIMD") && std::string(std::getenv("RAYSPLATS_SIMD")) == "sse");
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserData(geom, &chunk);
     rtcSetGeometryBoundsFunction(geom, gaussians_bounds, &chunk);
