@@ -186,15 +186,20 @@ public:
         return false;
     }
 
+    // A new gathering pass of a ray's segment: an empty buffer, compositing on from the segment's transmittance.
+    static void begin_gather_pass(LaneState& L, const Segment& seg) {
+        L.count = 0;
+        L.saturated = false;
+        L.base_transmittance = seg.transmittance;
+    }
+
     // Sorted gathering of a ray with single-ray queries, from the state left by earlier passes.
     void trace_sorted_from(Segment& seg, LaneState& L, const Ray& ray, Sampler& rng, Counters& c) const {
         TraceContext ctx(&L, TraceMode::Gather);
         for (;;) {
             RTCRayHit rh;
             init_rayhit(rh, ray, L.has_after ? L.after_t : ray.tmin);
-            L.count = 0;
-            L.saturated = false;
-            L.base_transmittance = seg.transmittance;
+            begin_gather_pass(L, seg);
             rtcIntersect1(s_.scene, &ctx, &rh);
             if (consume_gather(seg, L, ray, ray.tmax, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
                                rh.hit.v, rng, c))
@@ -258,6 +263,7 @@ public:
         LaneState lanes[16];
         RTCRayHit16 rh;
         alignas(64) int valid[16];
+        float end[16];  // where the first query stops
         const bool sorted = st_.compositing == Compositing::Sorted;
         for (int l = 0; l < 16; ++l) {
             valid[l] = active[l] ? -1 : 0;
@@ -272,7 +278,8 @@ public:
             rh.ray.dir_y[l] = r.d.y;
             rh.ray.dir_z[l] = r.d.z;
             rh.ray.tnear[l] = r.tmin;
-            rh.ray.tfar[l] = std::min(r.tmax, ends[l]);
+            end[l] = std::min(r.tmax, ends[l]);
+            rh.ray.tfar[l] = end[l];
             rh.ray.time[l] = 0.0f;
             rh.ray.mask[l] = 0xffffffffu;
             rh.ray.id[l] = unsigned(l);
@@ -292,19 +299,16 @@ public:
         }
         std::uint32_t pending = 0;  // rays that go on
         for (int l = 0; l < 16; ++l)
-            if (active[l] && !consume_gather(segs[l], lanes[l], rays[l], std::min(rays[l].tmax, ends[l]),
-                                             rh.ray.tfar[l], rh.hit.geomID[l], rh.hit.instID[0][l], rh.hit.primID[l],
-                                             rh.hit.u[l], rh.hit.v[l], rngs[l], c))
+            if (active[l] && !consume_gather(segs[l], lanes[l], rays[l], end[l], rh.ray.tfar[l], rh.hit.geomID[l],
+                                             rh.hit.instID[0][l], rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l],
+                                             c))
                 pending |= 1u << l;
         while (pending) {
             for (int l = 0; l < 16; ++l) {
                 valid[l] = (pending >> l) & 1u ? -1 : 0;
                 if (!valid[l]) continue;
-                LaneState& L = lanes[l];
-                L.count = 0;
-                L.saturated = false;
-                L.base_transmittance = segs[l].transmittance;
-                rh.ray.tnear[l] = L.after_t;
+                begin_gather_pass(lanes[l], segs[l]);
+                rh.ray.tnear[l] = lanes[l].after_t;
                 rh.ray.tfar[l] = rays[l].tmax;
                 rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
                 rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
@@ -581,6 +585,9 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     const int tile_count = tiles_x * tiles_y;
     Integrator integrator(impl, settings);
     const CameraRayGenerator camera_rays(camera, w, h);
+    // Not in stochastic mode: a segment ends at a random accepted Gaussian, which its neighbours' do not predict
+    // (showroom_1.5M: 10-16 % of the rays had to go on, and the frame was slower at every margin tried).
+    const bool speculate = settings.speculative_ends && settings.compositing == Compositing::Sorted;
     std::atomic<int> tiles_done{0};
     std::atomic<bool> cancelled{false};
     std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0}, group_candidates{0};
@@ -606,9 +613,6 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
             std::vector<float> coverage(accum.size(), 0.0f);
             // Where each pixel's last camera segment ended (+inf: it escaped or was not traced yet).
             std::vector<float> segment_end(accum.size(), kInf);
-            // Not in stochastic mode: a segment ends at a random accepted Gaussian, which its neighbours' do not
-            // predict (showroom_1.5M: 10-16 % of the rays went on alone, and the frame was slower).
-            const bool speculate = settings.speculative_ends && settings.compositing == Compositing::Sorted;
             bool stop = false;
             // Samples outermost so that consecutive primary rays are coherent (neighbouring pixels).
             // Camera rays go to Embree as 4 x 4 packets (neighbouring pixels, coherent).

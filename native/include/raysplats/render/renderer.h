@@ -46,10 +46,10 @@ struct RenderSettings {
     // reflective (refractive) caustics; a surface left without lobes (a mirror, a metal) absorbs such paths.
     bool caustics_reflective = true;
     bool caustics_refractive = true;
-    // Camera rays first traverse the scene only up to a little beyond where their neighbours' (or, after the first
-    // sample, their own previous) camera segments ended, and continue alone from there when that was too early: the
-    // traversal then skips what lies behind the first opaque layer. The image is the same either way (the same
-    // Gaussians composited in the same order); off is for tests and measurements.
+    // Sorted mode: camera rays first traverse the scene only up to a little beyond where their neighbours' (or,
+    // after the first sample, their own previous) camera segments ended, and go on from there when that was too
+    // early: the traversal then skips what lies behind the first opaque layer. The image is the same either way (the
+    // same Gaussians composited in the same order); off is for tests and measurements.
     bool speculative_ends = true;
 
     // Throws InvalidArgument with the offending setting.
