@@ -16,7 +16,7 @@ import splat_testing as st
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CHECK_GLTF = os.path.join(REPO, "scripts", "check_gltf.js")
 NPM_DIR = os.environ.get("RAYSPLATS_NPM_DIR", os.path.join(os.path.expanduser("~"), ".cache", "raysplats", "npm"))
-RIM_FALLOFF = float(np.exp(-4.5))  # exp(-rho²/2) at rho = 3
+RHO = 3.0  # the import's polygon radius
 
 
 def gltf_tools_missing():
@@ -128,11 +128,18 @@ def srgb_to_linear(c):
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
+def visible_radius(alpha):
+    """rho_i of DESIGN §5: where a·exp(-r²/2) falls to 1/255, at most RHO (0 when a <= 1/255)."""
+    return np.minimum(RHO, np.sqrt(2.0 * np.log(np.maximum(255.0 * alpha, 1.0))))
+
+
 def expected_patch_colors(cloud):
-    """Per Gaussian: linear RGB of the SH DC colour, and the mean alpha of its K + 1 = 9 patch vertices."""
+    """Per Gaussian: linear RGB of the SH DC colour, and the mean alpha of its K + 1 = 9 patch vertices (the centre
+    a, the rim a·exp(-rho_i²/2): 1/255 for a faint Gaussian)."""
     srgb = np.clip(0.5 + st.C0 * cloud["sh"][:, 0, :].astype(np.float64), 0.0, 1.0)
     alpha = np.clip(cloud["opacities"].astype(np.float64), 0, 1)
-    return srgb, srgb_to_linear(srgb), alpha * (1 + 8 * RIM_FALLOFF) / 9
+    rim = alpha * np.exp(-0.5 * visible_radius(alpha) ** 2)
+    return srgb, srgb_to_linear(srgb), (alpha + 8 * rim) / 9
 
 
 def add_red_cube(location=(1.0, 2.0, 3.0)):

@@ -24,6 +24,17 @@ def reset_scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
+def reset_render_scene(width, height, samples):
+    """An empty scene rendered by RaySplats at width x height (100 %) with `samples` samples per pixel."""
+    reset_scene()
+    scene = bpy.context.scene
+    scene.render.engine = "RAYSPLATS"
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.raysplats.samples = samples
+    return scene
+
+
 def native():
     from raysplats import native as native_module
     return native_module.core()
@@ -120,3 +131,15 @@ def render_to_array(name):
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
     return load_image(path)
+
+
+def set_world_color(world, color):
+    """Gives `world` a uniform background colour (strength 1). Blender 5.0's new worlds always use nodes, and their
+    Background node, not World.color (the viewport colour since), is what renderers show; before, a new world has no
+    nodes and renderers use World.color."""
+    world.color = color
+    if world.use_nodes and world.node_tree is not None:
+        for node in world.node_tree.nodes:
+            if node.bl_idname == "ShaderNodeBackground":
+                node.inputs["Color"].default_value = (*color, 1.0)
+                node.inputs["Strength"].default_value = 1.0

@@ -19,12 +19,14 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
+from raysplats import blender_compat
 
 WIDTH, HEIGHT, SAMPLES = 96, 72, 1024
 BLOCKS = 4  # the image is split into BLOCKS x BLOCKS regions for the systematic-bias check
 
 
-DISTRIBUTIONS = ("GGX",) if bpy.app.version < (4, 0, 0) else ("GGX", "MULTI_GGX")
+# Multiple-scattering GGX is modelled for Principled v2 only.
+DISTRIBUTIONS = ("GGX",) if blender_compat.PRINCIPLED_VERSION == "V1" else ("GGX", "MULTI_GGX")
 
 
 def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.45, distribution="GGX"):
@@ -58,7 +60,7 @@ def build_scene(distribution="GGX"):
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.use_nodes = False
-    world.color = (0.08, 0.09, 0.1)
+    st.set_world_color(world, (0.08, 0.09, 0.1))
     scene.world = world
     add(bpy.ops.mesh.primitive_plane_add, material("Floor", (0.8, 0.8, 0.8)), size=8.0)
     add(bpy.ops.mesh.primitive_cube_add, material("Red", (0.8, 0.1, 0.1)), size=0.8, location=(-1.2, 0.5, 0.4))

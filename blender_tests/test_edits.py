@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
+from raysplats.blender_compat import TRANSFORM_ROTATE_SIGN
 
 SCENE = "small_sh3_inria.ply"
 EXACT_TOLERANCE = 1e-5
@@ -101,9 +102,9 @@ class Edits(unittest.TestCase):
         bpy.ops.object.mode_set(mode="OBJECT")
         exported = st.export_file("edit_transform.ply")
 
-        # transform.rotate turns by -value about the axis (measured: value 0.7 about Z maps x to
-        # (cos 0.7, -sin 0.7, 0)), i.e. clockwise seen from +Z.
-        c, s = math.cos(-0.7), math.sin(-0.7)
+        # transform.rotate's direction differs between Blender versions (blender_compat.TRANSFORM_ROTATE_SIGN).
+        angle = TRANSFORM_ROTATE_SIGN * 0.7
+        c, s = math.cos(angle), math.sin(angle)
         rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
         linear = np.diag([1.5, 0.8, 1.2]) @ rotation
         a4 = np.eye(4)
@@ -119,7 +120,8 @@ class Edits(unittest.TestCase):
         bpy.ops.transform.rotate(value=1.1, orient_axis="X", orient_type="GLOBAL")
         bpy.ops.object.mode_set(mode="OBJECT")
         exported = st.export_file("edit_rotate_sh.ply")
-        c, s = math.cos(-1.1), math.sin(-1.1)  # transform.rotate turns by -value (see above)
+        angle = TRANSFORM_ROTATE_SIGN * 1.1  # (see above)
+        c, s = math.cos(angle), math.sin(angle)
         rotation = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
         self.assert_colours_follow(exported, self.original, rotation)
         # Without following, the colours would differ by far more than the tolerance.

@@ -79,14 +79,14 @@ class GltfValidity(unittest.TestCase):
 
     def test_gltf_is_y_up_with_the_cube_where_blender_has_it(self):
         splat_scene(with_cube=True)
-        doc = mt.gltf_json(mt.export_mesh("axes.glb", use_selection=True))  # the cube is selected
+        doc = mt.gltf_json(mt.export_mesh("axes.glb", limit_to="SELECTED"))  # the cube is selected
         self.assertEqual(len(doc["meshes"]), 1)
         position = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
         # Blender (1, 2, 3) ± 1 -> glTF (x, z, -y)
         np.testing.assert_allclose(position["min"], [0, 2, -3], atol=1e-6)
         np.testing.assert_allclose(position["max"], [2, 4, -1], atol=1e-6)
         # Local coordinates: vertices around the origin, the node carries the transform.
-        doc = mt.gltf_json(mt.export_mesh("axes_local.glb", use_selection=True, coordinates="LOCAL"))
+        doc = mt.gltf_json(mt.export_mesh("axes_local.glb", limit_to="SELECTED", coordinates="LOCAL"))
         position = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
         np.testing.assert_allclose(position["min"], [-1, -1, -1], atol=1e-6)
         np.testing.assert_allclose(np.array(doc["nodes"][0]["matrix"]).reshape(4, 4)[3, :3], [1, 3, -2], atol=1e-6)
@@ -222,7 +222,7 @@ class Options(unittest.TestCase):
     def test_selected_only(self):
         bpy.ops.object.select_all(action="DESELECT")
         self.splats.select_set(True)
-        self.assertEqual(self.counts("selected.glb", use_selection=True), (PATCH_VERTICES, PATCH_TRIANGLES))
+        self.assertEqual(self.counts("selected.glb", limit_to="SELECTED"), (PATCH_VERTICES, PATCH_TRIANGLES))
 
     def test_original_polygons(self):
         # K corners per face, fan-triangulated into K - 2 triangles; plus the cube.
@@ -240,7 +240,7 @@ class Options(unittest.TestCase):
         def bounds(name):
             bpy.ops.object.select_all(action="DESELECT")
             self.splats.select_set(True)
-            doc = mt.gltf_json(mt.export_mesh(name, use_selection=True))
+            doc = mt.gltf_json(mt.export_mesh(name, limit_to="SELECTED"))
             accessors = [doc["accessors"][p["attributes"]["POSITION"]] for m in doc["meshes"] for p in m["primitives"]]
             return np.min([a["min"] for a in accessors], axis=0), np.max([a["max"] for a in accessors], axis=0)
 
@@ -255,7 +255,7 @@ class Options(unittest.TestCase):
         bpy.ops.object.select_all(action="DESELECT")
         self.cube.select_set(True)
         for up_axis, expected in (("Y", [1, 3, -2]), ("Z", [1, 2, 3])):
-            path = mt.export_mesh(f"up_{up_axis}.obj", use_selection=True, up_axis=up_axis)
+            path = mt.export_mesh(f"up_{up_axis}.obj", limit_to="SELECTED", up_axis=up_axis)
             with open(path) as f:
                 vertices = np.array([line.split()[1:4] for line in f if line.startswith("v ")], dtype=np.float64)
             np.testing.assert_allclose(vertices.mean(axis=0), expected, atol=1e-5)
@@ -271,7 +271,7 @@ class Errors(unittest.TestCase):
         splat_scene(with_cube=True)
         bpy.ops.object.select_all(action="DESELECT")
         with self.assertRaisesRegex(RuntimeError, "no objects are selected"):
-            bpy.ops.export_scene.raysplats_mesh(filepath=st.tmp_file("none.glb"), use_selection=True)
+            bpy.ops.export_scene.raysplats_mesh(filepath=st.tmp_file("none.glb"), limit_to="SELECTED")
 
     def test_unwritable_path_and_no_half_written_file(self):
         splat_scene(with_cube=True)
@@ -283,7 +283,7 @@ class Errors(unittest.TestCase):
             before = f.read()
         bpy.ops.object.select_all(action="DESELECT")
         with self.assertRaises(RuntimeError):
-            bpy.ops.export_scene.raysplats_mesh(filepath=good, use_selection=True)
+            bpy.ops.export_scene.raysplats_mesh(filepath=good, limit_to="SELECTED")
         with open(good, "rb") as f:
             self.assertEqual(f.read(), before)
         folder = os.path.dirname(good)

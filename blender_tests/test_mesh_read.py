@@ -9,13 +9,13 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import gaussian_mesh
+from raysplats import blender_compat, gaussian_mesh, mesh_fast_read
 
 SCENE = "donut_sh0.ply"
 # How each Blender reads when nothing is wrong: positions are the "position" attribute from 3.5 on, corner vertices
 # the ".corner_vert" attribute from 3.6 on; before, MLoop structs read in place.
-POSITIONS_PATH = "attribute" if bpy.app.version >= (3, 5, 0) else "foreach_get"
-CORNERS_PATH = "attribute" if bpy.app.version >= (3, 6, 0) else "pointer"
+POSITIONS_PATH = "attribute" if blender_compat.MESH_POSITIONS_ARE_AN_ATTRIBUTE else "foreach_get"
+CORNERS_PATH = "attribute" if blender_compat.MESH_TOPOLOGY_IN_INT32_ARRAYS else "pointer"
 FACES_PATH = "pointer"  # MPoly structs before 3.6, the face offsets from then on, in place
 
 
@@ -56,8 +56,8 @@ class MeshRead(unittest.TestCase):
         st.reset_scene()
 
     def tearDown(self):
-        gaussian_mesh._loop_layout_failed = False
-        gaussian_mesh._face_layout_failed = False
+        mesh_fast_read._loop_layout_failed = False
+        mesh_fast_read._face_layout_failed = False
 
     def assert_reads_like_foreach_get(self, mesh, arrays, positions_path=POSITIONS_PATH, corners_path=CORNERS_PATH,
                                       faces_path=FACES_PATH):
@@ -69,13 +69,13 @@ class MeshRead(unittest.TestCase):
             self.assertEqual(actual.shape, wanted.shape, name)
             self.assertTrue(np.array_equal(actual, wanted), name)
         positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        self.assertEqual(gaussian_mesh.read_vertex_positions(mesh, positions), positions_path)
+        self.assertEqual(mesh_fast_read.read_vertex_positions(mesh, positions), positions_path)
         self.assertTrue(np.array_equal(positions, expected[0].ravel()))
-        corners = np.empty(len(mesh.loops), dtype=gaussian_mesh._INDEX_DTYPE)
-        self.assertEqual(gaussian_mesh.read_corner_vertices(mesh, corners), corners_path)
+        corners = np.empty(len(mesh.loops), dtype=blender_compat.MESH_INDEX_DTYPE)
+        self.assertEqual(mesh_fast_read.read_corner_vertices(mesh, corners), corners_path)
         self.assertTrue(np.array_equal(corners, expected[1]))
         starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
-        self.assertEqual(gaussian_mesh.read_face_corners(mesh, sizes, starts), faces_path)
+        self.assertEqual(mesh_fast_read.read_face_corners(mesh, sizes, starts), faces_path)
         self.assertTrue(np.array_equal(starts, expected[2]) and np.array_equal(sizes, expected[3]))
         return expected
 
@@ -121,10 +121,10 @@ class MeshRead(unittest.TestCase):
         self.assertEqual(set(expected[3].tolist()), {3, 8})
 
     def test_evaluated_geometry_is_read_from_the_datablock_only_where_evaluation_leaves_it_as_is(self):
-        """gaussian_mesh.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
+        """mesh_fast_read.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
         evaluated Mesh datablock (no copy); one with shape keys, a modifier or a deforming parent from its evaluated
         mesh. Either way what is read is the evaluated mesh's geometry and attributes, also right after an edit."""
-        shortcut = bpy.app.version < (3, 6, 0)
+        shortcut = blender_compat.EVALUATED_MESH_COPIES_ON_READ
         obj = st.import_file(SCENE)
         original = foreach_get_arrays(obj.data)[0]
 
@@ -133,7 +133,7 @@ class MeshRead(unittest.TestCase):
             bpy.context.view_layer.update()
             depsgraph = bpy.context.evaluated_depsgraph_get()
             evaluated = obj.evaluated_get(depsgraph)
-            mesh = gaussian_mesh.evaluated_mesh(evaluated, depsgraph)
+            mesh = mesh_fast_read.evaluated_mesh(evaluated, depsgraph)
             arrays = gaussian_mesh.mesh_arrays(mesh)
             attributes = gaussian_mesh.face_attributes(mesh, 0)
             for actual, wanted in zip(arrays, foreach_get_arrays(evaluated.data)):
@@ -196,7 +196,7 @@ class MeshRead(unittest.TestCase):
         single.loops.add(1)
         single.polygons.add(1)
         single.polygons[0].loop_start = 0
-        if bpy.app.version < (4, 0, 0):
+        if blender_compat.FACE_CORNER_COUNT_IS_WRITABLE:
             single.polygons[0].loop_total = 1
         arrays = gaussian_mesh.mesh_arrays(single)
         self.assertEqual([a.shape for a in arrays], [(1, 3), (1,), (1,), (1,)])
@@ -214,24 +214,24 @@ class MeshRead(unittest.TestCase):
         expected = foreach_get_arrays(mesh)[1]
 
         def read():
-            corners = np.empty(len(mesh.loops), dtype=gaussian_mesh._INDEX_DTYPE)
-            path = gaussian_mesh.read_corner_vertices(mesh, corners)
+            corners = np.empty(len(mesh.loops), dtype=blender_compat.MESH_INDEX_DTYPE)
+            path = mesh_fast_read.read_corner_vertices(mesh, corners)
             self.assertTrue(np.array_equal(corners, expected), path)
             return path
 
         # The loop array in place is also what 4.x reads when the attribute is missing.
-        with mock.patch.object(gaussian_mesh, "_CORNER_VERT_ATTRIBUTE", "no such attribute"):
+        with mock.patch.object(blender_compat, "MESH_CORNER_VERTEX_ATTRIBUTE", "no such attribute"):
             self.assertEqual(read(), "pointer")
-            with mock.patch.object(gaussian_mesh, "_LOOP_STRIDE", gaussian_mesh._LOOP_STRIDE + 4):
+            with mock.patch.object(blender_compat, "LOOP_STRIDE", blender_compat.LOOP_STRIDE + 4):
                 self.assertEqual(read(), "foreach_get")
             self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
-            gaussian_mesh._loop_layout_failed = False
+            mesh_fast_read._loop_layout_failed = False
             self.assertEqual(read(), "pointer")
             # The vertex index looked for 4 bytes into each element: 3.x's MLoop.e, which only the spot checks
             # catch (the stride is right); on 4.x past the 4-byte element.
-            with mock.patch.object(gaussian_mesh, "_LOOP_VERTEX_OFFSET", 4):
+            with mock.patch.object(blender_compat, "LOOP_VERTEX_OFFSET", 4):
                 self.assertEqual(read(), "foreach_get")
-            self.assertTrue(gaussian_mesh._loop_layout_failed)
+            self.assertTrue(mesh_fast_read._loop_layout_failed)
 
     def test_foreach_get_reads_when_the_face_layout_check_fails(self):
         obj = st.import_file(SCENE)
@@ -242,22 +242,22 @@ class MeshRead(unittest.TestCase):
 
         def read():
             starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
-            path = gaussian_mesh.read_face_corners(mesh, sizes, starts)
+            path = mesh_fast_read.read_face_corners(mesh, sizes, starts)
             self.assertTrue(np.array_equal(starts, expected[0]) and np.array_equal(sizes, expected[1]), path)
             return path
 
         self.assertEqual(read(), "pointer")
-        with mock.patch.object(gaussian_mesh, "_FACE_STRIDE", gaussian_mesh._FACE_STRIDE + 4):
+        with mock.patch.object(blender_compat, "FACE_STRIDE", blender_compat.FACE_STRIDE + 4):
             self.assertEqual(read(), "foreach_get")
         self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
-        gaussian_mesh._face_layout_failed = False
+        mesh_fast_read._face_layout_failed = False
         self.assertEqual(read(), "pointer")
         # The face's size looked for in the wrong field: 3.x's MPoly.loopstart, which only the spot checks catch (the
         # stride is right); from 3.6 on the offsets themselves taken for sizes.
-        with mock.patch.object(gaussian_mesh, "_FACE_SIZE_OFFSET", 0):
+        with mock.patch.object(blender_compat, "FACE_SIZE_OFFSET", 0):
             self.assertEqual(read(), "foreach_get")
-        self.assertTrue(gaussian_mesh._face_layout_failed)
-        gaussian_mesh._face_layout_failed = False
+        self.assertTrue(mesh_fast_read._face_layout_failed)
+        mesh_fast_read._face_layout_failed = False
         # The first corner looked for 4 bytes in: 3.x's MPoly.totloop, past the 4-byte element from 3.6 on.
-        with mock.patch.object(gaussian_mesh, "_FACE_START_OFFSET", 4):
+        with mock.patch.object(blender_compat, "FACE_START_OFFSET", 4):
             self.assertEqual(read(), "foreach_get")

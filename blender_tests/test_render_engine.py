@@ -12,6 +12,7 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
+from raysplats import blender_compat
 
 DONUT = "donut_sh0.ply"
 
@@ -26,7 +27,7 @@ def new_scene(width=160, height=120, samples=4):
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.use_nodes = False
-    world.color = (0.0, 0.0, 0.0)
+    st.set_world_color(world, (0.0, 0.0, 0.0))
     scene.world = world
     return scene
 
@@ -121,7 +122,7 @@ class RenderEngine(unittest.TestCase):
         self.assertFalse(np.isnan(ground).any())
 
         l0_expected = albedo * irradiance * math.cos(theta) / math.pi
-        if bpy.app.version < (4, 0, 0):
+        if blender_compat.PRINCIPLED_VERSION == "V1":
             # Principled v1's diffuse (Cycles' principled diffuse, roughness 1, seen along the normal):
             # (1 - FL / 2) + RR FL, FL = (1 - cos theta)^5, RR = roughness (1 + cos theta).
             fl = (1.0 - math.cos(theta)) ** 5
@@ -146,7 +147,7 @@ class RenderEngine(unittest.TestCase):
 
     def test_mirror_shows_splat_colours_and_glass_renders_without_nan(self):
         scene = new_scene(width=240, height=160, samples=8)
-        scene.world.color = (0.02, 0.02, 0.02)
+        st.set_world_color(scene.world, (0.02, 0.02, 0.02))
         add_donut((0.3, -0.3, 0.0))
         bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.6, 0.0), rotation=(math.pi / 2, 0, 0))
         mirror = bpy.context.object
@@ -189,7 +190,7 @@ class RenderEngine(unittest.TestCase):
 
     def test_animation_of_a_deformed_splat_object_changes_only_where_it_deforms(self):
         scene = new_scene(width=200, height=100, samples=2)
-        scene.world.color = (0.05, 0.05, 0.05)
+        st.set_world_color(scene.world, (0.05, 0.05, 0.05))
         moving = add_donut((-0.15, 0.0, 0.0))
         add_donut((0.15, 0.0, 0.0))
         lattice_data = bpy.data.lattices.new("Lattice")
@@ -222,7 +223,7 @@ class RenderEngine(unittest.TestCase):
     @unittest.skipIf(not bpy.app.binary_path, "Blender as a Python module has no command line")
     def test_headless_command_line_render(self):
         scene = new_scene(width=64, height=48, samples=2)
-        scene.world.color = (0.1, 0.2, 0.3)
+        st.set_world_color(scene.world, (0.1, 0.2, 0.3))
         add_donut((0.0, 0.0, 0.0))
         add_camera((0.0, -0.6, 0.0), (0, 1, 0))
         blend = st.tmp_file("headless.blend")
@@ -247,7 +248,7 @@ class RenderEngine(unittest.TestCase):
 
     def test_empty_scene_renders_the_world(self):
         scene = new_scene(width=32, height=24, samples=1)
-        scene.world.color = (0.2, 0.3, 0.4)
+        st.set_world_color(scene.world, (0.2, 0.3, 0.4))
         add_camera((0, 0, 0), (0, 1, 0))
         image = st.render_to_array("empty")
         np.testing.assert_allclose(image[..., :3].reshape(-1, 3).mean(axis=0), (0.2, 0.3, 0.4), atol=1e-4)
@@ -268,7 +269,7 @@ class RenderEngine(unittest.TestCase):
         core = st.native()
         for ortho in (False, True):
             scene = new_scene(width=80, height=60, samples=1)
-            scene.world.color = (0.1, 0.1, 0.1)
+            st.set_world_color(scene.world, (0.1, 0.1, 0.1))
             add_donut((0, 0, 0))
             camera = add_camera((0.05, -0.6, 0.1), (0, 1, -0.1), ortho_scale=0.4 if ortho else None, lens=40.0)
             camera.data.shift_x, camera.data.shift_y = 0.1, -0.05
@@ -317,6 +318,7 @@ class RenderEngine(unittest.TestCase):
         splats.data.vertices.foreach_get("co", co)
         splats.shape_key_add(name="Basis")
         lift = splats.shape_key_add(name="Lift")
+        lift.value = 0.0  # (a new key's value is 0 up to Blender 4.5 and 1 from 5.0)
         lift.data.foreach_set("co", (co.reshape(-1, 3) + (0.0, 0.0, 0.03)).ravel())
         bpy.context.view_layer.update()
         live = sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
@@ -452,11 +454,10 @@ class RenderEngine(unittest.TestCase):
 
 def fresh_sync():
     """An interactive SceneSync built from scratch from the current depsgraph, reading every Gaussian object from its
-    evaluated mesh (not through gaussian_mesh.evaluated_mesh's datablock shortcut, whose reads it checks)."""
+    evaluated mesh (not through mesh_fast_read.evaluated_mesh's datablock shortcut, whose reads it checks)."""
     from unittest import mock
-    from raysplats import gaussian_mesh
     from raysplats.engine import sync
-    with mock.patch.object(gaussian_mesh, "_EVALUATED_MESH_COPIES_ON_READ", False):
+    with mock.patch.object(blender_compat, "EVALUATED_MESH_COPIES_ON_READ", False):
         return sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
 
 

@@ -19,11 +19,12 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
+from raysplats import blender_compat
 
 CELLS, TEXELS_PER_CELL, PIXELS = 4, 4, 64
 SIZE = CELLS * TEXELS_PER_CELL
 MARGIN = 4  # pixels left out at each cell border (half a texel is 2 pixels)
-PRINCIPLED_V1_ALBEDO = 1.0 + 1.0 / 168.0 if bpy.app.version < (4, 0, 0) else 1.0
+PRINCIPLED_V1_ALBEDO = 1.0 + 1.0 / 168.0 if blender_compat.PRINCIPLED_VERSION == "V1" else 1.0
 RTOL, ATOL = 2e-3, 2e-4  # Monte Carlo noise of the v1 factor (< 3.4 % spread, 4096 samples per cell) and EXR
 
 
@@ -59,10 +60,13 @@ def new_scene():
     scene.render.resolution_percentage = 100
     scene.raysplats.samples = 16
     scene.raysplats.max_bounces = 0
+    # Each pixel sees only its own square, so a pixel's value is the mean of the texels under it (the default
+    # Blackman-Harris filter, 1.5 px, blends in neighbouring cells and the white world at the border).
+    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "BOX", 1.0
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.use_nodes = False
-    world.color = (1.0, 1.0, 1.0)
+    st.set_world_color(world, (1.0, 1.0, 1.0))
     scene.world = world
     bpy.ops.mesh.primitive_plane_add(size=2.0)  # UVs (0, 0) .. (1, 1) over x, y = -1 .. 1
     plane = bpy.context.object

@@ -11,6 +11,7 @@ PACKAGES=(
   libzstd-dev zlib1g-dev
   libgtest-dev libbenchmark-dev assimp-utils
   xvfb xauth libgl1-mesa-dri
+  patchelf binutils
 )
 
 missing=()

@@ -1,14 +1,23 @@
 #!/usr/bin/env bash
-# Sets everything up and runs all tests: dependencies, build, then ctest (GoogleTest for the core and the
-# Blender tests, which run in `blender -b --factory-startup --python-exit-code 1`).
+# Sets everything up and runs all tests: dependencies, build, then ctest (GoogleTest for the core, the Python
+# tests of the module, the Blender tests, which run in `blender -b --factory-startup --python-exit-code 1` on
+# Debian's Blender 3.4 and as the PyPI `bpy` module of official builds, and the extension zip's install test).
 #   scripts/test.sh [extra ctest arguments]
+# Blender versions: RAYSPLATS_TEST_BLENDERS (official builds besides Debian's 3.4) is by default "4.2 4.5 5.0".
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 "$root/scripts/install_deps.sh"
 # npm test tools (glTF validator, draco3d) into ~/.cache/raysplats/npm; ctest's setup.test_tools does it too.
 "$root/scripts/setup_test_tools.sh" >/dev/null
-# Blender 4.2 LTS (PyPI bpy) beside Debian's 3.4, when PyPI is reachable: registers the bpy4.* tests.
-bpy4_python=$("$root/scripts/setup_bpy4.sh")
-"$root/scripts/build.sh" "$root/build" -DRAYSPLATS_BPY4_PYTHON="$bpy4_python"
+# One cached venv per official Blender (PyPI bpy); a version PyPI cannot give is skipped with a message.
+bpy_pythons=()
+for version in ${RAYSPLATS_TEST_BLENDERS-4.2 4.5 5.0}; do
+  python=$("$root/scripts/setup_bpy.sh" "$version")
+  [[ -n $python ]] && bpy_pythons+=("$version=$python")
+done
+# The second native module (Python 3.13, Blender 5.1+), when this machine has a Python 3.13.
+python313=$("$root/scripts/setup_python313.sh")
+"$root/scripts/build.sh" "$root/build" "-DRAYSPLATS_BPY_PYTHONS=$(IFS=';'; echo "${bpy_pythons[*]}")" \
+  -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313"
 cd "$root/build"
 ctest --output-on-failure -j 2 "$@"

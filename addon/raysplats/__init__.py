@@ -7,7 +7,8 @@ bl_info = {
     "author": "RaySplats developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "File > Import/Export > Gaussian Splats; File > Export > RaySplats Mesh",
+    "location": "File > Import/Export > Gaussian Splats; Add > Gaussian Splats; Object Properties and 3D View "
+                "sidebar > Splats; File > Export > RaySplats Mesh; Object > Convert",
     "description": "Import, edit and export 3D Gaussian Splatting scenes as editable meshes",
     "category": "Import-Export",
 }
@@ -15,16 +16,21 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export,
-                    io_mesh_export, engine):  # noqa: F821
+    for _module in (native, blender_compat, errors, axes, progress, color_adjustment, properties,  # noqa: F821
+                    mesh_fast_read, gaussian_mesh, material, material_reader, export_scope, modifier_checks,
+                    io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
+                    splat_transform, splat_handlers, splat_ui, engine):  # noqa: F821
         importlib.reload(_module)
 else:
-    from . import (native, axes, progress, properties, gaussian_mesh, material, io_import, io_export,
-                   io_mesh_export, engine)
+    from . import (native, blender_compat, errors, axes, progress, color_adjustment, properties, mesh_fast_read,
+                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, io_export,
+                   io_mesh_export, native_splats, splat_selection, splat_tools, splat_transform, splat_handlers,
+                   splat_ui, engine)
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export, io_mesh_export, engine)
+_modules = (properties, io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
+            splat_transform, splat_handlers, splat_ui, engine)
 
 
 def register():

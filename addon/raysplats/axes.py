@@ -12,16 +12,19 @@ UP_AXIS_ITEMS = (
     ("Z", "Z up (Blender)", "The file is already Z up: no conversion"),
 )
 
-# Import default: by format. INRIA .ply and .splat scenes keep COLMAP's camera convention (x right, y down,
-# z forward: -Y up); SPZ stores RUB (x right, y up, z back: +Y up), per Niantic's format description.
-IMPORT_UP_AXIS_ITEMS = (("AUTO", "Automatic", "-Y up for .ply and .splat (COLMAP), +Y up for .spz (RUB)"),) \
-    + UP_AXIS_ITEMS
+# Import default: the core's format table (splat_formats()' up_axis), which is -Y for every format: the readers
+# return COLMAP's convention (x right, y down, z forward), converting SPZ's RUB (x right, y up, z back) on reading.
+# Which way is up is a property of the scene, not of its file format (DESIGN §4).
+IMPORT_UP_AXIS_ITEMS = (("AUTO", "Automatic", "-Y (COLMAP), the convention of 3DGS scenes, for every format "
+                                              "(.spz is converted from its RUB on reading)"),) + UP_AXIS_ITEMS
 
 
-def resolve_import_up_axis(up_axis, filepath):
+def resolve_import_up_axis(up_axis, splat_format):
+    """`up_axis`, or for "AUTO" the up axis of `splat_format` (an entry of the core's splat_formats(); None for
+    an unknown format, taken as the COLMAP convention of most scenes)."""
     if up_axis != "AUTO":
         return up_axis
-    return "Y" if filepath.lower().endswith(".spz") else "-Y"
+    return splat_format["up_axis"] if splat_format else "-Y"
 
 
 # file coordinates -> Blender coordinates, and the object's Euler X rotation that performs it.

@@ -29,9 +29,23 @@ import traceback
 
 import bpy
 
-SPLAT_EXTENSIONS = (".ply", ".splat", ".spz")
-MESH_FORMATS = ("glb", "gltf", "obj", "ply")
-SPLAT_FORMATS = ("ply", "splat", "spz")
+
+
+# Format names and extensions come from the add-on (which takes the splat formats from the core); it is
+# imported only once ensure_addon() has registered it.
+def _splat_formats():
+    from raysplats import io_import
+    return tuple(f["name"] for f in io_import.splat_formats())
+
+
+def _splat_extensions():
+    from raysplats import io_import
+    return io_import.splat_extensions()
+
+
+def _mesh_formats():
+    from raysplats import io_mesh_export
+    return tuple(sorted(extension.lstrip(".") for extension in io_mesh_export.MESH_EXTENSIONS))
 
 
 class UsageError(Exception):
@@ -74,7 +88,7 @@ def _parser():
 
     common(commands.add_parser("import", help="splat files -> .blend"))
     export = common(commands.add_parser("export", help=".blend or splat files -> OBJ/PLY/glTF/GLB"))
-    export.add_argument("--format", choices=MESH_FORMATS, help="output format (default: the output file's extension)")
+    export.add_argument("--format", choices=_mesh_formats(), help="output format (default: the output file's extension)")
     export.add_argument("--draco", action="store_true", help="Draco-compress glTF/GLB meshes")
     export.add_argument("--draco-position-bits", type=int, default=14)
     export.add_argument("--draco-normal-bits", type=int, default=10)
@@ -91,7 +105,7 @@ def _parser():
     convert = commands.add_parser("convert", help="splat files -> splat files")
     convert.add_argument("inputs", nargs="+", help="splat files or globs")
     convert.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
-    convert.add_argument("--format", choices=SPLAT_FORMATS, help="output format (default: the output's extension)")
+    convert.add_argument("--format", choices=_splat_formats(), help="output format (default: the output's extension)")
     return parser
 
 
@@ -146,16 +160,16 @@ def _open_input(source, args):
         bpy.ops.wm.open_mainfile(filepath=source)
         ensure_addon()
     else:
-        if not source.lower().endswith(SPLAT_EXTENSIONS):
-            raise ValueError(f"'{source}': not a .blend or splat file (.ply, .splat, .spz)")
+        if not source.lower().endswith(_splat_extensions()):
+            raise ValueError(f"'{source}': not a .blend or splat file ({', '.join(_splat_extensions())})")
         bpy.ops.wm.read_factory_settings(use_empty=True)
         ensure_addon()
         _import_splats(source, args)
 
 
 def _do_import(source, target, args):
-    if not source.lower().endswith(SPLAT_EXTENSIONS):
-        raise ValueError(f"'{source}': not a splat file (.ply, .splat, .spz)")
+    if not source.lower().endswith(_splat_extensions()):
+        raise ValueError(f"'{source}': not a splat file ({', '.join(_splat_extensions())})")
     bpy.ops.wm.read_factory_settings(use_empty=True)
     ensure_addon()
     obj = _import_splats(source, args)
@@ -265,7 +279,7 @@ def run(argv):
         extension = ".png"
     else:
         fmt = args.format or os.path.splitext(args.output)[1].lower().lstrip(".")
-        choices = MESH_FORMATS if args.command == "export" else SPLAT_FORMATS
+        choices = _mesh_formats() if args.command == "export" else _splat_formats()
         if fmt not in choices:
             raise UsageError(f"{args.command}: give --format ({', '.join(choices)}) or an output file with that extension")
         extension = "." + fmt

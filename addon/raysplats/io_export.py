@@ -7,8 +7,9 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, gaussian_mesh, native
-from .io_import import SPLAT_EXTENSIONS
+from . import axes, errors, export_scope, gaussian_mesh, modifier_checks, native
+from .io_import import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text
+from .io_mesh_export import with_extension
 from .progress import StageProgress
 
 
@@ -16,9 +17,8 @@ class NothingToExport(ValueError):
     pass
 
 
-def gaussian_objects(context, use_selection):
-    objects = context.selected_objects if use_selection else context.scene.objects
-    return [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
+def gaussian_objects(context, limit_to=export_scope.DEFAULT_LIMIT_TO):
+    return [obj for obj in export_scope.objects_in_scope(context, limit_to) if gaussian_mesh.is_gaussian_object(obj)]
 
 
 def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUTO"):
@@ -49,15 +49,17 @@ def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUT
     return arrays, stats
 
 
-def export_gaussian_splats(context, filepath, use_selection=False, apply_modifiers=True, up_axis="AUTO"):
-    """Writes the scene's (or the selected) Gaussian objects to a splat file, format from the extension.
-    Returns (number of Gaussians written, recovery stats, stage timings)."""
+def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, apply_modifiers=True,
+                           up_axis="AUTO"):
+    """Writes the Gaussian objects export_scope.objects_in_scope(limit_to) gives to a splat file, format from the
+    extension.
+    Returns (number of Gaussians written, recovery stats and "warnings" (messages), stage timings)."""
     extension = os.path.splitext(filepath)[1].lower()
-    if extension not in SPLAT_EXTENSIONS:
-        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use .ply, .splat or .spz")
-    objects = gaussian_objects(context, use_selection)
+    if splat_format_of(filepath) is None:
+        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {', '.join(splat_extensions())}")
+    objects = gaussian_objects(context, limit_to)
     if not objects:
-        raise NothingToExport("Nothing to export: no Gaussian splat objects" + (" selected" if use_selection else ""))
+        raise NothingToExport(f"Nothing to export: no Gaussian splat objects are {export_scope.describe(limit_to)}")
     core = native.core()
     with StageProgress(getattr(context, "window_manager", None), "RaySplats export", 2) as progress:
         progress.stage("recover Gaussians")
@@ -66,7 +68,27 @@ def export_gaussian_splats(context, filepath, use_selection=False, apply_modifie
         core.write_splats(filepath, arrays["positions"], arrays["rotations"], arrays["scales"],
                           arrays["opacities"], arrays["sh"])
     print(progress.summary())
+    stats["warnings"] = modifier_checks.export_warnings(objects, apply_modifiers)
     return len(arrays["opacities"]), stats, progress.times
+
+
+_format_items = []  # Blender needs the strings of dynamic enum items kept alive by Python
+
+
+def splat_format_items(self, context):
+    """The Format drop-down: one entry per format the core writes, labelled with its extension."""
+    try:
+        formats = splat_formats()
+    except native.NativeModuleMissing:
+        formats = []
+    _format_items[:] = [(f["name"].upper(), f"{f['name'].upper()} ({f['extensions'][0]})", f["description"])
+                        for f in formats] or [("PLY", "PLY (.ply)", "3DGS .ply")]
+    return _format_items
+
+
+def format_extension(format_name):
+    """The extension the core writes for a Format drop-down entry."""
+    return next(f["extensions"][0] for f in splat_formats() if f["name"].upper() == format_name)
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
@@ -78,10 +100,14 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
     filename_ext = ".ply"
     check_extension = None  # .ply, .splat and .spz are all accepted; the extension picks the format
-    filter_glob: StringProperty(default="*.ply;*.splat;*.spz", options={"HIDDEN"})
+    filter_glob: StringProperty(default="", options={"HIDDEN"})  # set from the core's formats in invoke()
 
-    use_selection: BoolProperty(name="Selected Only", default=False,
-                                description="Export only the selected Gaussian objects")
+    limit_to: EnumProperty(name="Limit to", items=export_scope.LIMIT_TO_ITEMS, default=export_scope.DEFAULT_LIMIT_TO,
+                           description="Which Gaussian objects are exported")
+    use_selection: BoolProperty(name="Selected Only", default=False, options={"HIDDEN"},
+                                description="Kept for scripts written before Limit to: True exports the selection")
+    export_format: EnumProperty(name="Format", items=splat_format_items,
+                                description="File format; the file name's extension follows it")
     apply_modifiers: BoolProperty(name="Apply Modifiers", default=True,
                                   description="Export the Gaussians as modifiers, shape keys and armatures leave them")
     up_axis: EnumProperty(
@@ -89,16 +115,42 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
         items=(("AUTO", "As Imported", "Undo the conversion each object was imported with"),) + axes.UP_AXIS_ITEMS,
         description="Up direction the written file uses")
 
+    def invoke(self, context, event):
+        current = splat_format_of(self.filepath) if self.filepath else None
+        if current is not None:
+            self.export_format = current["name"].upper()
+        return open_splat_file_browser(self, ExportHelper, context, event)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        for name in ("export_format", "limit_to", "apply_modifiers", "up_axis"):
+            layout.prop(self, name)
+        if self.export_format == "SPLAT":
+            # The format's own limit, said where it is chosen rather than discovered in a viewer.
+            layout.label(text=".splat keeps no view-dependent colour (SH bands)", icon="INFO")
+
+    def check(self, context):
+        # The extension follows the Format drop-down; True redraws the file browser.
+        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions())
+        changed = filepath != self.filepath
+        self.filepath = filepath
+        return changed
+
+    @errors.reports_failures("Export failed: ")
     def execute(self, context):
-        try:
-            count, stats, _ = export_gaussian_splats(
-                context, self.filepath, self.use_selection, self.apply_modifiers, self.up_axis)
-        except (native.NativeModuleMissing, RuntimeError, ValueError, OSError) as error:
-            self.report({"ERROR"}, f"Export failed: {error}")
-            return {"CANCELLED"}
+        count, stats, _ = export_gaussian_splats(
+            context, self.filepath, export_scope.limit_of(self.limit_to, self.use_selection), self.apply_modifiers,
+            self.up_axis)
+        for warning in stats["warnings"]:
+            self.report({"WARNING"}, warning)
         if stats.get("degenerate"):
             self.report({"WARNING"}, f"{stats['degenerate']} degenerate polygons (collinear or collapsed vertices) "
                                      "were exported with clamped scales")
+        if stats.get("invalid_rest_rotation"):
+            self.report({"WARNING"}, f"{stats['invalid_rest_rotation']} polygons had a stored rotation that is not a "
+                                     "rotation (NaN or zero): their Gaussians were recovered from the polygon shape")
         if stats.get("dropped"):
             self.report({"WARNING"}, f"{stats['dropped']} polygons with invalid vertices were not exported")
         self.report({"INFO"}, f"Exported {count:,} Gaussians to {os.path.basename(self.filepath)}")
@@ -106,7 +158,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
 
 def menu_export(self, context):
-    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text="Gaussian Splats (.ply/.splat/.spz)")
+    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text=splat_menu_text())
 
 
 def register():

@@ -9,7 +9,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, gaussian_mesh, native
+from . import axes, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
 from .progress import StageProgress
 
 MESH_EXTENSIONS = (".obj", ".ply", ".gltf", ".glb")
@@ -32,36 +32,59 @@ SPLAT_GEOMETRY_ITEMS = (
 )
 
 
+# The Format drop-down beside the file name (as glTF's exporter has): each format and the extension it writes.
+MESH_FORMAT_ITEMS = (
+    ("GLB", "glTF Binary (.glb)", "One binary glTF file"),
+    ("GLTF", "glTF Separate (.gltf + .bin)", "JSON glTF with its buffers beside it"),
+    ("OBJ", "Wavefront OBJ (.obj)", "Triangles with vertex colours (no materials beyond the colours)"),
+    ("PLY", "Stanford PLY (.ply)", "Triangles with vertex colours"),
+)
+MESH_FORMAT_EXTENSIONS = {"GLB": ".glb", "GLTF": ".gltf", "OBJ": ".obj", "PLY": ".ply"}
+
+
+def mesh_format_of(filepath):
+    """The MESH_FORMAT_ITEMS identifier of a file name's extension, or None."""
+    extension = os.path.splitext(filepath)[1].lower()
+    return next((name for name, ext in MESH_FORMAT_EXTENSIONS.items() if ext == extension), None)
+
+
+def with_extension(filepath, extension, known_extensions):
+    """`filepath` ending in `extension`: a known extension is replaced, anything else kept and the extension added."""
+    root, current = os.path.splitext(filepath)
+    return (root if current.lower() in known_extensions else filepath) + extension
+
+
 class NothingToExport(ValueError):
     pass
 
 
-def _principled_values(material):
-    """(linear base colour RGBA, metallic, roughness) of a material's Principled BSDF, or of its viewport
-    settings when it has none."""
-    if material is None:
-        return (0.8, 0.8, 0.8, 1.0), 0.0, 0.5
-    if material.use_nodes and material.node_tree is not None:
-        for node in material.node_tree.nodes:
-            if node.type == "BSDF_PRINCIPLED":
-                color = tuple(node.inputs["Base Color"].default_value)
-                alpha = node.inputs["Alpha"].default_value if "Alpha" in node.inputs else 1.0
-                return ((color[0], color[1], color[2], alpha), node.inputs["Metallic"].default_value,
-                        node.inputs["Roughness"].default_value)
-    return tuple(material.diffuse_color), material.metallic, material.roughness
+def _file_material_values(material, warn):
+    """(linear base colour RGBA, metallic, roughness) the mesh files get for a Blender material: what the renderer is
+    given (material_reader), in the files' metallic-roughness terms. The files carry no emission, so a surface whose
+    only colour is its emission (an Emission shader) is written with the emission colour as base colour, clamped to
+    glTF's [0, 1]."""
+    values = dict(material_reader.RENDERER_DEFAULTS)
+    if material is not None:
+        values.update(material_reader.read_material(material, warn)[0])
+    color = values["base_color"]
+    emission = values["emission_color"]
+    if max(color) <= 0.0 and values["emission_strength"] > 0.0 and max(emission) > 0.0:
+        color = tuple(min(1.0, max(0.0, c)) for c in emission)
+    return (color[0], color[1], color[2], values["alpha"]), values["metallic"], values["roughness"]
 
 
 class _Materials:
     """Blender materials -> indices in the native scene, each added once."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, warn):
         self.scene = scene
+        self.warn = warn
         self.index = {}
 
     def of(self, material):
         key = material.name if material is not None else None
         if key not in self.index:
-            color, metallic, roughness = _principled_values(material)
+            color, metallic, roughness = _file_material_values(material, self.warn)
             self.index[key] = self.scene.add_material(
                 key or "Default", [float(c) for c in color], float(metallic), float(roughness),
                 alpha_blend=color[3] < 1.0, double_sided=material is not None and not material.use_backface_culling)
@@ -137,12 +160,13 @@ def _add_mesh_object(scene, materials, obj, depsgraph, transform, node, apply_mo
         source.to_mesh_clear()
 
 
-def export_mesh_file(context, filepath, use_selection=False, apply_modifiers=True, coordinates="WORLD",
+def export_mesh_file(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, apply_modifiers=True, coordinates="WORLD",
                      up_axis="Y", splat_geometry="PATCHES", include_meshes=True, draco=False,
                      draco_position_bits=14, draco_normal_bits=10, draco_uv_bits=12, draco_compression_level=7,
                      gaussian_splatting=False):
-    """Exports the scene's (or the selected) Gaussian objects and meshes; format from the extension.
-    Returns the native writer's stats (vertices, triangles, primitives, bytes) plus gaussians and objects."""
+    """Exports the Gaussian objects and meshes export_scope.objects_in_scope(limit_to) gives; format from the extension.
+    Returns the native writer's stats (vertices, triangles, primitives, bytes) plus gaussians, objects and warnings
+    (what the materials' conversion left out)."""
     extension = os.path.splitext(filepath)[1].lower()
     if extension not in MESH_EXTENSIONS:
         raise ValueError(f"'{filepath}': unknown mesh format '{extension}'; use .obj, .ply, .gltf or .glb")
@@ -150,19 +174,20 @@ def export_mesh_file(context, filepath, use_selection=False, apply_modifiers=Tru
         up_axis = "Y"  # glTF is +Y up by specification
     elif draco or gaussian_splatting:
         raise ValueError("Draco compression and KHR_gaussian_splatting are glTF features; use .gltf or .glb")
-    objects = list(context.selected_objects if use_selection else context.scene.objects)
-    if use_selection and not objects:
-        raise NothingToExport("Nothing to export: no objects are selected")
+    objects = export_scope.objects_in_scope(context, limit_to)
+    if not objects:
+        raise NothingToExport(f"Nothing to export: no objects are {export_scope.describe(limit_to)}")
     gaussian_objects = [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
     mesh_objects = [obj for obj in objects if include_meshes and obj.type in MESH_LIKE_TYPES
                     and not gaussian_mesh.is_gaussian_object(obj)]
     if not gaussian_objects and not mesh_objects:
-        raise NothingToExport("Nothing to export: " + ("the selection has" if use_selection else "the scene has")
-                              + " no Gaussian splat objects or meshes")
+        raise NothingToExport(f"Nothing to export: no Gaussian splat objects or meshes are "
+                              f"{export_scope.describe(limit_to)}")
 
     core = native.core()
     scene = core.MeshExportScene()
-    materials = _Materials(scene)
+    warnings = []
+    materials = _Materials(scene, warnings.append)
     options = {"splat_geometry": splat_geometry, "apply_modifiers": apply_modifiers,
                "gaussian_splatting": gaussian_splatting}
     for obj in gaussian_objects + mesh_objects:
@@ -187,6 +212,7 @@ def export_mesh_file(context, filepath, use_selection=False, apply_modifiers=Tru
     print(progress.summary())
     stats["gaussians"] = gaussians
     stats["objects"] = len(gaussian_objects) + len(mesh_objects)
+    stats["warnings"] = modifier_checks.export_warnings(gaussian_objects, apply_modifiers) + warnings
     return stats
 
 
@@ -201,7 +227,12 @@ class EXPORT_SCENE_OT_raysplats_mesh(bpy.types.Operator, ExportHelper):
     check_extension = None  # .obj, .ply, .gltf and .glb are all accepted; the extension picks the format
     filter_glob: StringProperty(default="*.obj;*.ply;*.gltf;*.glb", options={"HIDDEN"})
 
-    use_selection: BoolProperty(name="Selected Only", default=False, description="Export only the selected objects")
+    limit_to: EnumProperty(name="Limit to", items=export_scope.LIMIT_TO_ITEMS, default=export_scope.DEFAULT_LIMIT_TO,
+                           description="Which objects are exported")
+    use_selection: BoolProperty(name="Selected Only", default=False, options={"HIDDEN"},
+                                description="Kept for scripts written before Limit to: True exports the selection")
+    export_format: EnumProperty(name="Format", items=MESH_FORMAT_ITEMS, default="GLB",
+                                description="File format; the file name's extension follows it")
     apply_modifiers: BoolProperty(name="Apply Modifiers", default=True,
                                   description="Export the objects as modifiers, shape keys and armatures leave them")
     coordinates: EnumProperty(name="Coordinates", items=COORDINATE_ITEMS, default="WORLD")
@@ -223,11 +254,28 @@ class EXPORT_SCENE_OT_raysplats_mesh(bpy.types.Operator, ExportHelper):
                                      description="Also write the Gaussians themselves as glTF points with the "
                                                  "KHR_gaussian_splatting extension (release candidate)")
 
+    def check(self, context):
+        # The extension follows the Format drop-down (glTF's exporter does the same); True redraws the browser.
+        filepath = with_extension(self.filepath, MESH_FORMAT_EXTENSIONS[self.export_format], MESH_EXTENSIONS)
+        changed = filepath != self.filepath
+        self.filepath = filepath
+        return changed
+
+    def invoke(self, context, event):
+        self.export_format = mesh_format_of(self.filepath) or self.export_format
+        return ExportHelper.invoke(self, context, event)
+
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        for name in ("use_selection", "apply_modifiers", "coordinates", "up_axis", "splat_geometry", "include_meshes"):
+        layout.use_property_decorate = False
+        is_gltf = self.export_format in ("GLB", "GLTF")
+        for name in ("export_format", "limit_to", "apply_modifiers", "coordinates", "splat_geometry",
+                     "include_meshes"):
             layout.prop(self, name)
+        if not is_gltf:  # glTF is +Y up by specification: the choice is OBJ's and PLY's only
+            layout.prop(self, "up_axis")
+            return
         box = layout.box()
         box.label(text="glTF")
         box.prop(self, "draco")
@@ -237,13 +285,14 @@ class EXPORT_SCENE_OT_raysplats_mesh(bpy.types.Operator, ExportHelper):
             column.prop(self, name)
         box.prop(self, "gaussian_splatting")
 
+    @errors.reports_failures("Export failed: ")
     def execute(self, context):
-        keywords = self.as_keywords(ignore=("filepath", "filter_glob", "check_existing"))
-        try:
-            stats = export_mesh_file(context, self.filepath, **keywords)
-        except (native.NativeModuleMissing, RuntimeError, ValueError, OSError) as error:
-            self.report({"ERROR"}, f"Export failed: {error}")
-            return {"CANCELLED"}
+        keywords = self.as_keywords(ignore=("filepath", "filter_glob", "check_existing", "export_format",
+                                            "use_selection"))
+        keywords["limit_to"] = export_scope.limit_of(self.limit_to, self.use_selection)
+        stats = export_mesh_file(context, self.filepath, **keywords)
+        for warning in stats["warnings"]:
+            self.report({"WARNING"}, warning)
         self.report({"INFO"}, f"Exported {stats['objects']} objects ({stats['triangles']:,} triangles) to "
                               f"{os.path.basename(self.filepath)}")
         return {"FINISHED"}

@@ -3,6 +3,7 @@
 # Preview (EEVEE) shows the splats as they are.
 import bpy
 
+from . import blender_compat
 from .gaussian_mesh import ATTR_COLOR, UV_MAP
 
 MATERIAL_NAME = "RaySplats Gaussian"
@@ -58,15 +59,24 @@ def gaussian_material():
     links.new(emission.outputs[0], mix.inputs[2])
     links.new(mix.outputs[0], output.inputs["Surface"])
 
-    # EEVEE transparency: blend_method until 4.1, surface_render_method from 4.2 on.
-    if hasattr(material, "surface_render_method"):
-        material.surface_render_method = "BLENDED"
-    if hasattr(material, "blend_method"):
-        try:
-            material.blend_method = "BLEND"
-        except TypeError:
-            pass
-    if hasattr(material, "shadow_method"):
-        material.shadow_method = "NONE"
+    set_eevee_transparency(material, sorted_blending=False)
     material.diffuse_color = (0.8, 0.8, 0.8, 1.0)
     return material
+
+
+def set_eevee_transparency(material, sorted_blending=False):
+    """How EEVEE (Material Preview) draws the splats' alpha.
+
+    The default, sorted_blending=False, is stochastic transparency: Alpha Hashed on 3.x, Dithered on 4.2+. Each
+    sample keeps a fragment with probability alpha and EEVEE's accumulated samples converge to the depth-ordered
+    composite that the RaySplats render computes, whatever order the faces are drawn in. sorted_blending=True is
+    alpha Blend (Blended on 4.2+): EEVEE sorts objects, not the faces inside one, so the back of a splat object
+    is drawn over its front. It is kept for comparisons (examples/material_preview_agreement.py).
+    Shadows follow the alpha (Hashed on 3.x, transparent shadows on 4.2+), as the renderer's shadow rays see
+    the splats' transmittance."""
+    if blender_compat.MATERIAL_HAS_SURFACE_RENDER_METHOD:
+        material.surface_render_method = "BLENDED" if sorted_blending else "DITHERED"
+        material.use_transparent_shadow = True
+    else:
+        material.blend_method = "BLEND" if sorted_blending else "HASHED"
+        material.shadow_method = "HASHED"

@@ -1,5 +1,13 @@
 # Lazy access to the native core, so that the add-on still registers (and says what is missing) when the
 # module has not been built, as the glTF add-on does for Draco.
+# The package may hold one module per Python ABI (the extension zip carries _native.cpython-311-*.so for Blender 4.2
+# to 5.0 and _native.cpython-313-*.so for 5.1+); `from . import _native` takes the one whose tag is this Python's
+# (importlib.machinery.EXTENSION_SUFFIXES), so no choice is made here.
+import glob
+import importlib.machinery
+import os
+import sys
+
 _module = None
 
 
@@ -14,9 +22,14 @@ def core():
         try:
             from . import _native
         except ImportError as error:
+            present = sorted(os.path.basename(path) for path in
+                             glob.glob(os.path.join(os.path.dirname(os.path.abspath(__file__)), "_native*.so")))
+            wanted = "_native" + importlib.machinery.EXTENSION_SUFFIXES[0]
             raise NativeModuleMissing(
-                "The RaySplats native module is not built or does not match this Blender's Python "
-                f"({error}). Build it with scripts/build.sh (see README)."
+                f"The RaySplats native module for this Blender's Python {sys.version_info.major}."
+                f"{sys.version_info.minor} ({wanted}) is missing or does not load ({error}); the add-on has "
+                f"{', '.join(present) or 'no native module'}. Install the extension zip made for your Blender, or "
+                "build the module with scripts/build.sh (see README)."
             ) from error
         _module = _native
     return _module

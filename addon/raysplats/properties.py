@@ -25,6 +25,19 @@ class RaySplatsObjectSettings(bpy.types.PropertyGroup):
                                 subtype="FILE_PATH")
     up_axis: EnumProperty(name="File Up Axis", items=UP_AXIS_ITEMS, default="-Y",
                           description="Up direction of the source file, undone again on export")
+    # Colour adjustments (color_adjustment.py): applied to the SH wherever Gaussians are rendered or exported, and to
+    # the colour attribute the viewport shows (splat_handlers.py and the message bus: no update= callbacks here, which make
+    # Blender 4.2 as a Python module crash at exit); the stored SH stay as imported.
+    exposure: FloatProperty(name="Exposure", description="Brightness in stops (each +1 doubles the colours)",
+                            default=0.0, soft_min=-4.0, soft_max=4.0)
+    brightness: FloatProperty(name="Brightness", description="Added to the display colours", default=0.0,
+                              soft_min=-1.0, soft_max=1.0)
+    saturation: FloatProperty(name="Saturation", description="1 keeps the colours, 0 makes them grey", default=1.0,
+                              min=0.0, soft_max=2.0)
+    hue: FloatProperty(name="Hue", description="Rotation of the hues, in turns", default=0.0, soft_min=-0.5,
+                       soft_max=0.5)
+    temperature: FloatProperty(name="Temperature", description="Warmer (positive) or cooler (negative) colours",
+                               default=0.0, min=-1.0, max=1.0)
 
 
 def register():

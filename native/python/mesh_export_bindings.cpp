@@ -9,28 +9,19 @@
 #include <string>
 #include <vector>
 
+#include "conversions.h"
 #include "raysplats/errors.h"
 #include "raysplats/mesh_export.h"
 
 namespace py = pybind11;
 using namespace pybind11::literals;
+using namespace raysplats::python;
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-using IntArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
-using UIntArray = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
-void check_size(py::ssize_t actual, py::ssize_t expected, const char* name) {
-    if (actual != expected)
-        throw raysplats::InvalidArgument(std::string("array '") + name + "' has " + std::to_string(actual) +
-                                         " values but " + std::to_string(expected) + " were expected");
-}
-
 void copy_matrix(const std::optional<DoubleArray>& m, double out[16], const char* name) {
     if (!m) return;
-    check_size(m->size(), 16, name);
+    require_size(*m, name, 16);
     std::copy(m->data(), m->data() + 16, out);
 }
 
@@ -50,22 +41,7 @@ public:
     void add_splats(const std::string& name, const FloatArray& positions, const FloatArray& rotations,
                     const FloatArray& scales, const FloatArray& opacities, const FloatArray& sh, int vertices_per_polygon,
                     float radius, int material, std::optional<DoubleArray> node_matrix, bool keep_gaussians, bool patches) {
-        const py::ssize_t n = opacities.size();
-        check_size(positions.size(), 3 * n, "positions");
-        check_size(rotations.size(), 4 * n, "rotations");
-        check_size(scales.size(), 3 * n, "scales");
-        raysplats::GaussianCloud cloud;
-        const py::ssize_t coeffs = n ? sh.size() / (3 * n) : 1;
-        cloud.sh_degree = -1;
-        for (int d = 0; d <= 3; ++d)
-            if (raysplats::sh_coeff_count(d) == coeffs) cloud.sh_degree = d;
-        if (cloud.sh_degree < 0 || sh.size() != 3 * n * coeffs)
-            throw raysplats::InvalidArgument("array 'sh' must hold 1, 4, 9 or 16 RGB coefficients per Gaussian");
-        cloud.positions.assign(positions.data(), positions.data() + positions.size());
-        cloud.rotations.assign(rotations.data(), rotations.data() + rotations.size());
-        cloud.scales.assign(scales.data(), scales.data() + scales.size());
-        cloud.opacities.assign(opacities.data(), opacities.data() + opacities.size());
-        cloud.sh.assign(sh.data(), sh.data() + sh.size());
+        raysplats::GaussianCloud cloud = cloud_from_arrays(positions, rotations, scales, opacities, sh);
         if (patches) {
             raysplats::ExportMesh mesh;
             {
@@ -84,22 +60,22 @@ public:
         }
     }
 
-    void add_triangles(const std::string& name, const FloatArray& positions, const UIntArray& triangles,
+    void add_triangles(const std::string& name, const FloatArray& positions, const UintArray& triangles,
                        std::optional<FloatArray> normals, std::optional<IntArray> triangle_materials,
                        std::vector<int> material_slots, const DoubleArray& transform, std::optional<DoubleArray> node_matrix) {
         raysplats::TriangleMeshView view;
         view.positions = positions.data();
         view.vertex_count = std::size_t(positions.size() / 3);
-        check_size(positions.size(), 3 * py::ssize_t(view.vertex_count), "positions");
+        require_size(positions, "positions", 3 * py::ssize_t(view.vertex_count));
         view.triangles = triangles.data();
         view.triangle_count = std::size_t(triangles.size() / 3);
-        check_size(triangles.size(), 3 * py::ssize_t(view.triangle_count), "triangles");
-        if (normals) check_size(normals->size(), positions.size(), "normals"), view.normals = normals->data();
+        require_size(triangles, "triangles", 3 * py::ssize_t(view.triangle_count));
+        if (normals) require_size(*normals, "normals", positions.size()), view.normals = normals->data();
         if (triangle_materials)
-            check_size(triangle_materials->size(), py::ssize_t(view.triangle_count), "triangle_materials"),
+            require_size(*triangle_materials, "triangle_materials", py::ssize_t(view.triangle_count)),
                 view.triangle_materials = triangle_materials->data();
         double m[16];
-        check_size(transform.size(), 16, "transform");
+        require_size(transform, "transform", 16);
         std::copy(transform.data(), transform.data() + 16, m);
         raysplats::ExportMesh mesh;
         {
@@ -122,11 +98,11 @@ public:
         view.face_corner_start = face_corner_start.data();
         view.face_corner_count = face_corner_count.data();
         view.face_count = std::size_t(face_corner_start.size());
-        check_size(face_corner_count.size(), face_corner_start.size(), "face_corner_count");
-        if (corner_colors) check_size(corner_colors->size(), 4 * corner_vertices.size(), "corner_colors");
-        if (corner_uvs) check_size(corner_uvs->size(), 2 * corner_vertices.size(), "corner_uvs");
+        require_size(face_corner_count, "face_corner_count", face_corner_start.size());
+        if (corner_colors) require_size(*corner_colors, "corner_colors", 4 * corner_vertices.size());
+        if (corner_uvs) require_size(*corner_uvs, "corner_uvs", 2 * corner_vertices.size());
         double m[16];
-        check_size(transform.size(), 16, "transform");
+        require_size(transform, "transform", 16);
         std::copy(transform.data(), transform.data() + 16, m);
         raysplats::ExportMesh mesh;
         {

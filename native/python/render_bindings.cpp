@@ -1,81 +1,66 @@
 // Bindings of the renderer (raysplats._native.RenderScene, RenderJob). Thin: arrays in are kept alive by the
-// scene object (the core shares them without copies); a render runs on its own thread so that the Blender
-// engine can poll progress and Esc from the main thread and cancel within a fraction of a second.
+// scene object (the core shares them without copies); the render job is the core's (render/render_job.h),
+// which runs on its own thread so that the Blender engine can poll progress and Esc from the main thread.
+// Values are converted by conversions.h.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <atomic>
-#include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <exception>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 
+#include "conversions.h"
 #include "raysplats/errors.h"
-#include "raysplats/render/renderer.h"
+#include "raysplats/render/camera_parameters.h"
+#include "raysplats/render/render_job.h"
 
 namespace py = pybind11;
 using namespace pybind11::literals;
+using namespace raysplats::python;
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-using UintArray = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
-
-void require_shape(const py::array& a, const char* name, std::initializer_list<py::ssize_t> shape) {
-    bool ok = a.ndim() == py::ssize_t(shape.size());
-    std::size_t i = 0;
-    for (auto s : shape) {
-        ok = ok && (s < 0 || a.shape(i) == s);
-        ++i;
-    }
-    if (!ok) throw raysplats::InvalidArgument(std::string("array '") + name + "' has the wrong shape");
+// Names of the light types and material models as the add-on passes them (Blender's spellings). Only the
+// bindings take these by name (the JSON tool has lights of its own spelling), so the tables live here.
+const raysplats::NameTable<raysplats::LightType>& light_type_names() {
+    static const raysplats::NameTable<raysplats::LightType> names{
+        "light type",
+        {{"POINT", raysplats::LightType::Point, "point light"},
+         {"SUN", raysplats::LightType::Sun, "directional light"},
+         {"SPOT", raysplats::LightType::Spot, "spot light"},
+         {"AREA_RECTANGLE", raysplats::LightType::AreaRectangle, "rectangular area light"},
+         {"AREA_DISK", raysplats::LightType::AreaDisk, "disk area light"}}};
+    return names;
+}
+const raysplats::NameTable<raysplats::DiffuseModel>& diffuse_model_names() {
+    static const raysplats::NameTable<raysplats::DiffuseModel> names{
+        "diffuse model",
+        {{"LAMBERT", raysplats::DiffuseModel::Lambert, "Lambertian"},
+         {"PRINCIPLED", raysplats::DiffuseModel::Principled, "Principled BSDF's diffuse"}}};
+    return names;
+}
+const raysplats::NameTable<raysplats::PrincipledVersion>& principled_version_names() {
+    static const raysplats::NameTable<raysplats::PrincipledVersion> names{
+        "Principled version",
+        {{"V1", raysplats::PrincipledVersion::V1, "Blender 3.x Principled BSDF"},
+         {"V2", raysplats::PrincipledVersion::V2, "Blender 4.x Principled BSDF"}}};
+    return names;
 }
 
-raysplats::Matrix4 matrix_from(const py::object& obj, const char* name) {
-    raysplats::Matrix4 m;
-    if (obj.is_none()) return m;
-    FloatArray a = FloatArray::ensure(obj);
-    if (!a || a.size() != 16) throw raysplats::InvalidArgument(std::string("'") + name + "' must be a 4x4 matrix");
-    std::copy(a.data(), a.data() + 16, m.m.begin());
-    return m;
-}
-
-std::array<float, 3> rgb_from(const py::sequence& s, const char* name) {
-    if (py::len(s) < 3) throw raysplats::InvalidArgument(std::string("'") + name + "' needs 3 components");
-    return {s[0].cast<float>(), s[1].cast<float>(), s[2].cast<float>()};
-}
-
-template <typename E>
-E enum_from(const std::string& value, std::initializer_list<std::pair<const char*, E>> items, const char* name) {
-    for (const auto& [key, e] : items)
-        if (value == key) return e;
-    throw raysplats::InvalidArgument(std::string("unknown ") + name + " '" + value + "'");
-}
-
-raysplats::GaussianMode gaussian_mode_from(const std::string& s) {
-    return enum_from<raysplats::GaussianMode>(
-        s, {{"FLAT", raysplats::GaussianMode::Flat}, {"VOLUMETRIC", raysplats::GaussianMode::Volumetric}},
-        "Gaussian mode");
-}
-
-// A scene plus the Python objects whose memory it shares.
+// A scene plus the Python objects whose memory it shares. Every change goes through shared.change(), which
+// refuses while a RenderJob renders the scene.
 struct RenderScene {
-    raysplats::Scene scene;
+    raysplats::SharedScene shared;
     std::vector<py::object> keep_alive;                // textures
     std::vector<std::vector<py::object>> mesh_arrays;  // per mesh index
     std::vector<std::unique_ptr<raysplats::GaussianCloud>> clouds;  // per cloud index (stable addresses)
 
-    std::uint32_t add_material(const py::sequence& base_color, float metallic, float roughness, float specular,
-                               float transmission, float ior, const py::sequence& emission_color,
+    std::uint32_t add_material(const py::object& base_color, float metallic, float roughness, float specular,
+                               float transmission, float ior, const py::object& emission_color,
                                float emission_strength, float alpha, const std::string& diffuse_model,
                                const std::optional<FloatArray>& base_color_texture, bool texture_srgb,
-                               const std::string& principled_version, const py::sequence& specular_tint,
+                               const std::string& principled_version, const py::object& specular_tint,
                                bool multiscatter) {
         raysplats::Material m;
         m.base_color = rgb_from(base_color, "base_color");
@@ -83,12 +68,8 @@ struct RenderScene {
         m.transmission = transmission, m.ior = ior;
         m.emission_color = rgb_from(emission_color, "emission_color");
         m.emission_strength = emission_strength, m.alpha = alpha;
-        m.diffuse_model = enum_from<raysplats::DiffuseModel>(
-            diffuse_model, {{"LAMBERT", raysplats::DiffuseModel::Lambert}, {"PRINCIPLED", raysplats::DiffuseModel::Principled}},
-            "diffuse model");
-        m.principled_version = enum_from<raysplats::PrincipledVersion>(
-            principled_version, {{"V1", raysplats::PrincipledVersion::V1}, {"V2", raysplats::PrincipledVersion::V2}},
-            "Principled version");
+        m.diffuse_model = diffuse_model_names().value_of(diffuse_model);
+        m.principled_version = principled_version_names().value_of(principled_version);
         m.specular_tint = rgb_from(specular_tint, "specular_tint");
         m.multiscatter = multiscatter;
         if (base_color_texture) {
@@ -96,14 +77,15 @@ struct RenderScene {
             const FloatArray& t = *base_color_texture;
             const int channels = t.ndim() == 2 ? 1 : t.ndim() == 3 ? int(t.shape(2)) : 0;
             if (channels != 1 && channels != 3 && channels != 4)
-                throw raysplats::InvalidArgument("array 'base_color_texture' must be H x W x C with C = 1, 3 or 4");
+                throw raysplats::InvalidArgument("array 'base_color_texture' has shape " + shape_text(t) +
+                                                 " but (H,W), (H,W,3) or (H,W,4) was expected");
             m.base_color_texture.pixels = t.data();
             m.base_color_texture.height = int(t.shape(0));
             m.base_color_texture.width = int(t.shape(1));
             m.base_color_texture.channels = channels;
             m.base_color_texture.srgb = texture_srgb;
         }
-        const std::uint32_t index = scene.add_material(m);
+        const std::uint32_t index = shared.change()->add_material(m);
         if (base_color_texture) keep_alive.push_back(*base_color_texture);
         return index;
     }
@@ -113,28 +95,28 @@ struct RenderScene {
                                          std::uint32_t material, const std::optional<UintArray>& face_materials,
                                          const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
                                          std::vector<py::object>& arrays) {
-        require_shape(vertices, "vertices", {-1, 3});
-        require_shape(triangles, "triangles", {-1, 3});
+        const py::ssize_t vertex_count = require_shape(vertices, "vertices", {kAnySize, 3});
+        const py::ssize_t triangle_count = require_shape(triangles, "triangles", {kAnySize, 3});
         raysplats::MeshDesc d;
         d.vertices = vertices.data();
-        d.vertex_count = std::size_t(vertices.shape(0));
+        d.vertex_count = std::size_t(vertex_count);
         d.indices = triangles.data();
-        d.triangle_count = std::size_t(triangles.shape(0));
+        d.triangle_count = std::size_t(triangle_count);
         d.material = material;
         d.object_to_world = matrix_from(matrix, "matrix");
         arrays = {vertices, triangles};
         if (face_materials) {
-            require_shape(*face_materials, "face_materials", {triangles.shape(0)});
+            require_shape(*face_materials, "face_materials", {triangle_count});
             d.face_materials = face_materials->data();
             arrays.push_back(*face_materials);
         }
         if (normals) {
-            require_shape(*normals, "normals", {vertices.shape(0), 3});
+            require_shape(*normals, "normals", {vertex_count, 3});
             d.normals = normals->data();
             arrays.push_back(*normals);
         }
         if (uvs) {
-            require_shape(*uvs, "uvs", {vertices.shape(0), 2});
+            require_shape(*uvs, "uvs", {vertex_count, 2});
             d.uvs = uvs->data();
             arrays.push_back(*uvs);
         }
@@ -146,69 +128,24 @@ struct RenderScene {
                            const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
         std::vector<py::object> arrays;
         const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
-        const std::uint32_t index = scene.add_mesh(d);
+        const std::uint32_t index = shared.change()->add_mesh(d);
         mesh_arrays.push_back(std::move(arrays));
         return index;
-    }
-
-    void set_interactive(bool interactive, std::uint32_t chunk_size) {
-        require_idle();
-        scene.set_interactive(interactive, chunk_size);
-    }
-
-    py::dict last_build() const {
-        const raysplats::Scene::BuildReport r = scene.last_build();
-        py::dict d;
-        d["full"] = r.full;
-        d["gaussian_chunks"] = r.gaussian_chunks;
-        d["meshes"] = r.meshes;
-        return d;
-    }
-
-    // Updates must not race a render of this scene on a RenderJob thread.
-    std::atomic<int> renders_running{0};
-    void require_idle() const {
-        if (renders_running.load() != 0)
-            throw raysplats::Error("the scene is being rendered; wait for or cancel the render before changing it");
     }
 
     void update_mesh(std::uint32_t index, const FloatArray& vertices, const UintArray& triangles,
                      const py::object& matrix, std::uint32_t material, const std::optional<UintArray>& face_materials,
                      const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
-        require_idle();
         std::vector<py::object> arrays;
         const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
-        scene.update_mesh(index, d);
+        shared.change()->update_mesh(index, d);
         mesh_arrays[index] = std::move(arrays);  // the old arrays are released only now
-    }
-
-    static std::unique_ptr<raysplats::GaussianCloud> cloud_from(const FloatArray& positions, const FloatArray& rotations,
-                                                                const FloatArray& scales, const FloatArray& opacities,
-                                                                const FloatArray& sh) {
-        require_shape(positions, "positions", {-1, 3});
-        const py::ssize_t n = positions.shape(0);
-        require_shape(rotations, "rotations", {n, 4});
-        require_shape(scales, "scales", {n, 3});
-        require_shape(opacities, "opacities", {n});
-        require_shape(sh, "sh", {n, -1, 3});
-        auto cloud = std::make_unique<raysplats::GaussianCloud>();
-        int degree = -1;
-        for (int d = 0; d <= 3; ++d)
-            if (raysplats::sh_coeff_count(d) == sh.shape(1)) degree = d;
-        if (degree < 0) throw raysplats::InvalidArgument("sh must have 1, 4, 9 or 16 coefficients per channel");
-        cloud->sh_degree = degree;
-        cloud->positions.assign(positions.data(), positions.data() + positions.size());
-        cloud->rotations.assign(rotations.data(), rotations.data() + rotations.size());
-        cloud->scales.assign(scales.data(), scales.data() + scales.size());
-        cloud->opacities.assign(opacities.data(), opacities.data() + opacities.size());
-        cloud->sh.assign(sh.data(), sh.data() + sh.size());
-        return cloud;
     }
 
     std::uint32_t add_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
                                 const FloatArray& opacities, const FloatArray& sh, const py::object& matrix) {
-        auto cloud = cloud_from(positions, rotations, scales, opacities, sh);
-        const std::uint32_t index = scene.add_gaussians(*cloud, matrix_from(matrix, "matrix"));
+        auto cloud = std::make_unique<raysplats::GaussianCloud>(cloud_from_arrays(positions, rotations, scales, opacities, sh));
+        const std::uint32_t index = shared.change()->add_gaussians(*cloud, matrix_from(matrix, "matrix"));
         clouds.push_back(std::move(cloud));
         return index;
     }
@@ -216,9 +153,8 @@ struct RenderScene {
     void update_gaussians(std::uint32_t index, const FloatArray& positions, const FloatArray& rotations,
                           const FloatArray& scales, const FloatArray& opacities, const FloatArray& sh,
                           const py::object& matrix) {
-        require_idle();
-        auto cloud = cloud_from(positions, rotations, scales, opacities, sh);
-        scene.update_gaussians(index, *cloud, matrix_from(matrix, "matrix"));
+        auto cloud = std::make_unique<raysplats::GaussianCloud>(cloud_from_arrays(positions, rotations, scales, opacities, sh));
+        shared.change()->update_gaussians(index, *cloud, matrix_from(matrix, "matrix"));
         clouds[index] = std::move(cloud);
     }
 
@@ -227,186 +163,121 @@ struct RenderScene {
     void update_gaussian_rows(std::uint32_t index, const UintArray& rows, const FloatArray& positions,
                               const FloatArray& rotations, const FloatArray& scales, const FloatArray& opacities,
                               const FloatArray& sh) {
-        require_idle();
+        auto change = shared.change();
         if (index >= clouds.size()) throw raysplats::InvalidArgument("Gaussian cloud " + std::to_string(index) + " does not exist");
-        auto values = cloud_from(positions, rotations, scales, opacities, sh);
-        require_shape(rows, "rows", {py::ssize_t(values->size())});
-        clouds[index]->assign_rows(*values, rows.data(), "Gaussian cloud " + std::to_string(index));
-        scene.gaussians_changed(index, rows.data(), values->size());
+        const raysplats::GaussianCloud values = cloud_from_arrays(positions, rotations, scales, opacities, sh);
+        require_shape(rows, "rows", {py::ssize_t(values.size())});
+        clouds[index]->assign_rows(values, rows.data(), "Gaussian cloud " + std::to_string(index));
+        change->gaussians_changed(index, rows.data(), values.size());
     }
 
     // Moves a Gaussian cloud without new data (the viewport's object transform).
     void set_gaussians_matrix(std::uint32_t index, const py::object& matrix) {
-        require_idle();
-        scene.set_gaussians_transform(index, matrix_from(matrix, "matrix"));
+        shared.change()->set_gaussians_transform(index, matrix_from(matrix, "matrix"));
     }
 
-    std::uint32_t add_light(const std::string& type, const py::sequence& color, float power, const py::object& matrix,
+    std::uint32_t add_light(const std::string& type, const py::object& color, float power, const py::object& matrix,
                             float spot_size, float spot_blend, float size_x, float size_y, float sun_angle) {
         raysplats::Light l;
-        l.type = enum_from<raysplats::LightType>(type,
-                                                 {{"POINT", raysplats::LightType::Point},
-                                                  {"SUN", raysplats::LightType::Sun},
-                                                  {"SPOT", raysplats::LightType::Spot},
-                                                  {"AREA_RECTANGLE", raysplats::LightType::AreaRectangle},
-                                                  {"AREA_DISK", raysplats::LightType::AreaDisk}},
-                                                 "light type");
+        l.type = light_type_names().value_of(type);
         l.color = rgb_from(color, "color");
         l.power = power, l.spot_size = spot_size, l.spot_blend = spot_blend;
         l.size_x = size_x, l.size_y = size_y, l.sun_angle = sun_angle;
         l.light_to_world = matrix_from(matrix, "matrix");
-        return scene.add_light(l);
+        return shared.change()->add_light(l);
     }
 
-    void set_world(const py::sequence& color, float strength) {
+    void set_world(const py::object& color, float strength) {
         raysplats::World w;
         w.color = rgb_from(color, "color");
         w.strength = strength;
-        scene.set_world(w);
+        shared.change()->set_world(w);
+    }
+
+    void set_interactive(bool interactive, std::uint32_t chunk_size) {
+        shared.change()->set_interactive(interactive, chunk_size);
     }
 
     double build(const std::string& mode) {
-        const auto m = gaussian_mode_from(mode);
+        const raysplats::GaussianMode m = raysplats::gaussian_mode_names().value_of(mode);
+        auto change = shared.change();
         py::gil_scoped_release release;
-        return scene.build(m);
+        return change->build(m);
+    }
+
+    py::dict last_build() const {
+        const raysplats::Scene::BuildReport r = shared.scene().last_build();
+        py::dict d;
+        d["full"] = r.full;
+        d["gaussian_chunks"] = r.gaussian_chunks;
+        d["meshes"] = r.meshes;
+        return d;
     }
 };
 
-raysplats::Camera camera_from(const py::dict& c) {
-    raysplats::Camera cam;
-    auto get = [&](const char* key, float fallback) { return c.contains(key) ? c[key].cast<float>() : fallback; };
-    cam.type = enum_from<raysplats::CameraType>(
-        c.contains("type") ? c["type"].cast<std::string>() : std::string("PERSP"),
-        {{"PERSP", raysplats::CameraType::Perspective},
-         {"ORTHO", raysplats::CameraType::Orthographic},
-         {"EQUIRECTANGULAR", raysplats::CameraType::Equirectangular},
-         {"FISHEYE_EQUIDISTANT", raysplats::CameraType::FisheyeEquidistant},
-         {"FISHEYE_EQUISOLID", raysplats::CameraType::FisheyeEquisolid}},
-        "camera type");
-    cam.camera_to_world = matrix_from(c.contains("matrix") ? py::object(c["matrix"]) : py::none(), "camera matrix");
-    cam.focal_length_mm = get("lens", cam.focal_length_mm);
-    cam.sensor_width_mm = get("sensor_width", cam.sensor_width_mm);
-    cam.sensor_height_mm = get("sensor_height", cam.sensor_height_mm);
-    cam.sensor_fit = enum_from<raysplats::SensorFit>(
-        c.contains("sensor_fit") ? c["sensor_fit"].cast<std::string>() : std::string("AUTO"),
-        {{"AUTO", raysplats::SensorFit::Auto},
-         {"HORIZONTAL", raysplats::SensorFit::Horizontal},
-         {"VERTICAL", raysplats::SensorFit::Vertical}},
-        "sensor fit");
-    cam.shift_x = get("shift_x", 0), cam.shift_y = get("shift_y", 0);
-    cam.clip_start = get("clip_start", cam.clip_start), cam.clip_end = get("clip_end", cam.clip_end);
-    cam.ortho_scale = get("ortho_scale", cam.ortho_scale);
-    cam.longitude_min = get("longitude_min", cam.longitude_min);
-    cam.longitude_max = get("longitude_max", cam.longitude_max);
-    cam.latitude_min = get("latitude_min", cam.latitude_min);
-    cam.latitude_max = get("latitude_max", cam.latitude_max);
-    cam.fisheye_fov = get("fisheye_fov", cam.fisheye_fov);
-    cam.fisheye_lens_mm = get("fisheye_lens", cam.fisheye_lens_mm);
-    return cam;
-}
-
-raysplats::RenderSettings settings_from(const py::dict& s) {
-    raysplats::RenderSettings r;
-    auto get_int = [&](const char* key, int fallback) { return s.contains(key) ? s[key].cast<int>() : fallback; };
-    r.width = get_int("width", r.width);
-    r.height = get_int("height", r.height);
-    r.samples = get_int("samples", r.samples);
-    r.max_bounces = get_int("max_bounces", r.max_bounces);
-    r.seed = std::uint32_t(get_int("seed", 0));
-    if (s.contains("compositing"))
-        r.compositing = enum_from<raysplats::Compositing>(
-            s["compositing"].cast<std::string>(),
-            {{"SORTED", raysplats::Compositing::Sorted}, {"STOCHASTIC", raysplats::Compositing::Stochastic}},
-            "compositing");
-    if (s.contains("transmittance_threshold")) r.transmittance_threshold = s["transmittance_threshold"].cast<float>();
-    if (s.contains("gaussian_mode")) r.gaussian_mode = gaussian_mode_from(s["gaussian_mode"].cast<std::string>());
-    if (s.contains("meshes_shadow_gaussians")) r.meshes_shadow_gaussians = s["meshes_shadow_gaussians"].cast<bool>();
-    if (s.contains("transparent_background")) r.transparent_background = s["transparent_background"].cast<bool>();
-    if (s.contains("caustics_reflective")) r.caustics_reflective = s["caustics_reflective"].cast<bool>();
-    if (s.contains("caustics_refractive")) r.caustics_refractive = s["caustics_refractive"].cast<bool>();
-    r.tile_size = get_int("tile_size", r.tile_size);
-    r.validate();
-    return r;
-}
-
-template <typename T, typename A>
-py::array_t<T> to_numpy(std::vector<T, A>&& values, std::vector<py::ssize_t> shape) {
-    auto* owned = new std::vector<T, A>(std::move(values));
-    py::capsule owner(owned, [](void* p) { delete static_cast<std::vector<T, A>*>(p); });
-    return py::array_t<T>(shape, owned->data(), owner);
-}
-
-// One render on a worker thread. Python polls progress()/wait() and may cancel(); result() hands the film over.
-class RenderJob {
+// raysplats::RenderJob for Python: keeps the scene object alive as long as the job, and releases the GIL while
+// it waits so that Blender's UI (and other Python threads) go on.
+class PyRenderJob {
 public:
-    RenderJob(py::object scene_object, const py::dict& camera, const py::dict& settings)
-        : scene_object_(std::move(scene_object)), camera_(camera_from(camera)), settings_(settings_from(settings)) {
-        camera_.validate();
-        RenderScene& rs = scene_object_.cast<RenderScene&>();
-        ++rs.renders_running;
-        thread_ = std::thread([this, &rs] {
-            try {
-                film_ = raysplats::render(rs.scene, camera_, settings_,
-                                          [this](float f) { progress_.store(f); }, &cancel_);
-            } catch (...) {
-                error_ = std::current_exception();
-            }
-            --rs.renders_running;
-            std::lock_guard<std::mutex> lock(mutex_);
-            done_ = true;
-            cv_.notify_all();
-        });
-    }
-    ~RenderJob() {
-        cancel_.store(true);
-        if (thread_.joinable()) {
-            py::gil_scoped_release release;
-            thread_.join();
-        }
+    PyRenderJob(py::object scene_object, const py::dict& camera, const py::dict& settings, int max_threads,
+                bool below_normal_priority)
+        : scene_object_(std::move(scene_object)),
+          job_(std::make_unique<raysplats::RenderJob>(scene_object_.cast<RenderScene&>().shared, camera_from(camera),
+                                                      settings_from(settings), max_threads, below_normal_priority)) {}
+    ~PyRenderJob() {
+        py::gil_scoped_release release;  // the render thread is joined here
+        job_.reset();
     }
 
-    float progress() const { return progress_.load(); }
-    void cancel() { cancel_.store(true); }
+    float progress() const { return job_->progress(); }
+    void cancel() { job_->cancel(); }
     bool wait(double timeout_seconds) {
         py::gil_scoped_release release;
-        std::unique_lock<std::mutex> lock(mutex_);
-        return cv_.wait_for(lock, std::chrono::duration<double>(timeout_seconds), [this] { return done_; });
+        return job_->wait(timeout_seconds);
     }
-
+    int snapshot_samples() const { return job_->snapshot_samples(); }
+    py::dict snapshot(const std::optional<std::vector<std::string>>& keys) {
+        std::vector<raysplats::FilmChannel> channels;
+        if (keys)
+            for (const std::string& key : *keys) channels.push_back(film_channel_of(key));
+        raysplats::Film film;
+        {
+            py::gil_scoped_release release;  // a copy of the film, under the job's lock
+            film = job_->snapshot(channels);
+        }
+        return film_to_dict(std::move(film));
+    }
     py::dict result() {
-        wait(1e9);
-        if (thread_.joinable()) thread_.join();
-        if (error_) std::rethrow_exception(error_);
-        const py::ssize_t h = film_.height, w = film_.width;
-        py::dict d;
-        d["cancelled"] = film_.stats.cancelled;
-        d["render_seconds"] = film_.stats.render_seconds;
-        d["camera_rays"] = film_.stats.camera_rays;
-        d["gaussian_hits"] = film_.stats.gaussian_hits;
-        d["rgba"] = to_numpy(std::move(film_.rgba), {h, w, 4});
-        d["depth"] = to_numpy(std::move(film_.depth), {h, w});
-        d["normal"] = to_numpy(std::move(film_.normal), {h, w, 3});
-        d["alpha"] = to_numpy(std::move(film_.alpha), {h, w});
-        return d;
+        raysplats::Film film;
+        {
+            py::gil_scoped_release release;
+            film = job_->result();
+        }
+        return film_to_dict(std::move(film));
     }
 
 private:
-    py::object scene_object_;
-    raysplats::Camera camera_;
-    raysplats::RenderSettings settings_;
-    raysplats::Film film_;
-    std::exception_ptr error_;
-    std::atomic<float> progress_{0.0f};
-    std::atomic<bool> cancel_{false};
-    std::mutex mutex_;
-    std::condition_variable cv_;
-    bool done_ = false;
-    std::thread thread_;
+    py::object scene_object_;  // declared first: released after the job has ended
+    std::unique_ptr<raysplats::RenderJob> job_;
 };
 
 }  // namespace
 
+// The film channel table (raysplats/render/film.h), for the engine's pass registration and result writer.
+py::list film_channel_table() {
+    py::list channels;
+    for (const raysplats::FilmChannelInfo& info : raysplats::film_channels())
+        channels.append(py::dict("key"_a = info.key, "pass_name"_a = info.pass_name, "components"_a = info.components,
+                                 "kind"_a = info.kind, "empty_value"_a = info.empty_value,
+                                 "first_sample_only"_a = info.combination == raysplats::SampleCombination::FirstSample,
+                                 "description"_a = info.description));
+    return channels;
+}
+
 void register_render_bindings(py::module_& m) {
+    m.def("film_channels", &film_channel_table,
+          "The render's film channels in order: key (RenderJob.result()'s dict key), pass_name, components (one letter "
+          "each), kind (COLOR/VALUE/VECTOR), empty_value, first_sample_only, description");
     py::class_<RenderScene>(m, "RenderScene", "Meshes, Gaussians, lights, materials and world for the ray tracer")
         .def(py::init<>())
         .def("add_material", &RenderScene::add_material, "base_color"_a = std::vector<float>{0.8f, 0.8f, 0.8f},
@@ -439,14 +310,32 @@ void register_render_bindings(py::module_& m) {
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")
-        .def_property_readonly("gaussian_count", [](RenderScene& s) { return s.scene.gaussian_count(); })
-        .def_property_readonly("mesh_count", [](RenderScene& s) { return s.scene.mesh_count(); })
-        .def_property_readonly("light_count", [](RenderScene& s) { return s.scene.light_count(); });
+        .def_property_readonly("gaussian_count", [](const RenderScene& s) { return s.shared.scene().gaussian_count(); })
+        .def_property_readonly("mesh_count", [](const RenderScene& s) { return s.shared.scene().mesh_count(); })
+        .def_property_readonly("light_count", [](const RenderScene& s) { return s.shared.scene().light_count(); });
 
-    py::class_<RenderJob>(m, "RenderJob", "A render running on a native thread")
-        .def(py::init<py::object, const py::dict&, const py::dict&>(), "scene"_a, "camera"_a, "settings"_a)
-        .def_property_readonly("progress", &RenderJob::progress)
-        .def("cancel", &RenderJob::cancel)
-        .def("wait", &RenderJob::wait, "timeout"_a, "True when the render has finished")
-        .def("result", &RenderJob::result, "The film as numpy arrays (rows top to bottom); raises on errors");
+    py::class_<PyRenderJob>(m, "RenderJob", "A render running on a native thread")
+        .def(py::init<py::object, const py::dict&, const py::dict&, int, bool>(), "scene"_a, "camera"_a, "settings"_a,
+             "max_threads"_a = 0, "below_normal_priority"_a = false,
+             "Starts rendering; camera and settings are dicts of camera_parameters() and render_settings() "
+             "(unknown names are errors); max_threads > 0 caps the render's threads (0: all cores); "
+             "below_normal_priority: the job's thread yields the CPU to the UI")
+        .def_property_readonly("progress", &PyRenderJob::progress)
+        .def("cancel", &PyRenderJob::cancel)
+        .def("wait", &PyRenderJob::wait, "timeout"_a, "True when the render has finished")
+        .def_property_readonly("snapshot_samples", &PyRenderJob::snapshot_samples,
+                               "Sample passes done over the whole image (before the last); 0 before the first ends")
+        .def("snapshot", &PyRenderJob::snapshot, "channels"_a = py::none(),
+             "The film of the newest completed sample pass, as result() gives films (its 'samples': the passes; "
+             "only the channels named, by key, when given: the viewport copies 'rgba' alone); 0 x 0 before the "
+             "first pass ends")
+        .def("result", &PyRenderJob::result, "The film as numpy arrays (rows top to bottom); raises on errors");
+
+    // The core's vocabularies, for the add-on to read rather than restate.
+    m.def("render_settings", [] { return describe(raysplats::render_setting_parameters()); },
+          "The render settings a RenderJob takes: list of {name, type, description, choices}");
+    m.def("camera_parameters", [] { return describe(raysplats::camera_parameters()); },
+          "The camera parameters a RenderJob takes (angles in radians): list of {name, type, description, choices}");
+    m.def("camera_models", [] { return describe(raysplats::camera_model_names()); },
+          "The camera models (the camera parameter 'type'): list of {name, description}");
 }

@@ -49,18 +49,40 @@ TEST(DotSplatFormat, RoundTripKeepsBytes) {
     write_dot_splat(out, a);
     const auto src = read_bytes(path), dst = read_bytes(out);
     ASSERT_EQ(src.size(), dst.size());
-    // Position, scale and RGBA bytes are reproduced exactly (colour decode / encode is exact on the steps).
-    std::size_t rot_diff = 0;
+    // An untouched round trip is byte-exact, rotation bytes included: the stored bytes are not a unit quaternion
+    // (the reader normalises them), and re-quantising the normalised one changed a byte in 44 % of the records
+    // before the writer looked for the bytes that read back as the same quaternion.
+    std::size_t records_changed = 0;
     for (std::size_t i = 0; i < a.size(); ++i) {
-        ASSERT_EQ(std::memcmp(&src[32 * i], &dst[32 * i], 28), 0) << "record " << i;
-        for (int j = 28; j < 32; ++j) rot_diff += std::abs(int(src[32 * i + j]) - int(dst[32 * i + j])) > 1;
+        EXPECT_EQ(std::memcmp(&src[32 * i], &dst[32 * i], 28), 0) << "record " << i;
+        records_changed += std::memcmp(&src[32 * i + 28], &dst[32 * i + 28], 4) != 0;
     }
-    // Rotations are re-normalised, so their bytes may move by one step (1/128) but not more.
-    EXPECT_EQ(rot_diff, 0u);
+    EXPECT_EQ(records_changed, 0u) << "of " << a.size();
+    EXPECT_TRUE(src == dst);
     const GaussianCloud b = read_dot_splat(out);
     EXPECT_EQ(b.positions, a.positions);
     EXPECT_EQ(b.sh, a.sh);
     EXPECT_EQ(b.opacities, a.opacities);
+}
+
+TEST(DotSplatFormat, EditedRotationIsStillQuantisedToTheNearestBytes) {
+    // The exact-bytes search must not change what an edited (arbitrary) quaternion becomes: the nearest bytes.
+    GaussianCloud c;
+    c.resize(3, 0);
+    const float q[12] = {0.8f, 0.36f, -0.48f, 0.0f, 0.5f, 0.5f, 0.5f, 0.5f, 0.1234f, -0.9f, 0.3f, 0.2771f};
+    for (int i = 0; i < 3; ++i) {
+        double n = 0;
+        for (int j = 0; j < 4; ++j) n += double(q[4 * i + j]) * q[4 * i + j];
+        for (int j = 0; j < 4; ++j) c.rotations[4 * i + j] = float(q[4 * i + j] / std::sqrt(n));
+    }
+    const std::string out = tmp_path("edited_rotation.splat");
+    write_dot_splat(out, c);
+    const GaussianCloud back = read_dot_splat(out);
+    for (int i = 0; i < 3; ++i) {
+        double dot = 0;
+        for (int j = 0; j < 4; ++j) dot += double(back.rotations[4 * i + j]) * c.rotations[4 * i + j];
+        EXPECT_GT(dot, 1.0 - 1e-4) << i;  // 8-bit components: within 1/128 per component
+    }
 }
 
 TEST(DotSplatFormat, PlyToSplatWithinQuantisation) {

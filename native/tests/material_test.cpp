@@ -144,7 +144,7 @@ TEST(Material, TexturedQuadRendersTexelColoursAtTheUVs) {
                 for (int c = 0; c < 3; ++c) {
                     const double texel = pixels[(std::size_t(j) * n + i) * 3 + c];
                     const double expected = srgb ? srgb_to_linear_ref(texel) : texel;
-                    ASSERT_NEAR(film.rgba[4 * (std::size_t(row) * n + i) + c], expected, 1e-5)
+                    ASSERT_NEAR(film.rgba()[4 * (std::size_t(row) * n + i) + c], expected, 1e-5)
                         << "pixel " << i << ", " << row << (srgb ? " (sRGB)" : " (linear)");
                 }
             }

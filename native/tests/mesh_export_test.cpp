@@ -100,6 +100,35 @@ TEST(SplatPatches, OneGaussianIsAFanWithFalloffAlphaUvsAndNormal) {
     }
 }
 
+// A faint Gaussian's patch spans only where it is visible (DESIGN §5, rho_i = sqrt(2 ln(255 a)) < rho): its rim at
+// rho_i with alpha 1/255, its UVs on the circle of radius 0.5 rho_i / rho, so that x = rho (2 uv - 1) is the local
+// coordinate on every patch (one alpha texture serves all). A Gaussian below 1/255 gets a patch of zero size.
+TEST(SplatPatches, FaintGaussiansHavePatchesOfTheirVisibleRadius) {
+    GaussianCloud cloud = one_gaussian();
+    cloud.opacities[0] = 0.05f;
+    const double rho_i = std::sqrt(2 * std::log(255 * 0.05));  // 2.2567
+    const ExportMesh m = splat_patches(cloud, PolygonSettings{}, "g");
+    EXPECT_FLOAT_EQ(m.colors[3], 0.05f);
+    for (int k = 0; k < 8; ++k) {
+        const std::size_t v = 1 + std::size_t(k);
+        const double theta = 2 * M_PI * k / 8;
+        EXPECT_NEAR(m.positions[3 * v], 1 + rho_i * 0.5 * std::cos(theta), 1e-5);
+        EXPECT_NEAR(m.positions[3 * v + 1], 2 + rho_i * 0.2 * std::sin(theta), 1e-5);
+        EXPECT_NEAR(m.colors[4 * v + 3], 1.0 / 255, 1e-8);
+        const double x = 3.0 * (2 * m.uvs[2 * v] - 1), y = 3.0 * (2 * m.uvs[2 * v + 1] - 1);
+        EXPECT_NEAR(x, rho_i * std::cos(theta), 1e-5);
+        EXPECT_NEAR(y, rho_i * std::sin(theta), 1e-5);
+        EXPECT_NEAR(0.05 * std::exp(-0.5 * (x * x + y * y)), m.colors[4 * v + 3], 1e-8);  // the texture agrees
+    }
+    cloud.opacities[0] = 0.003f;
+    const ExportMesh invisible = splat_patches(cloud, PolygonSettings{}, "g");
+    ASSERT_EQ(invisible.vertex_count(), 9u);
+    for (std::size_t v = 1; v < 9; ++v) {
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(invisible.positions[3 * v + c], invisible.positions[c]);
+        EXPECT_FLOAT_EQ(invisible.uvs[2 * v], 0.5f);
+    }
+}
+
 TEST(SplatPatches, PartsHoldAtMost65535VerticesWithLocalIndices) {
     const GaussianCloud cloud = read_splat_file(data_path("donut_sh0.ply"));
     const ExportMesh m = splat_patches(cloud, PolygonSettings{}, "donut");

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "core/linear_algebra.h"
@@ -32,6 +34,11 @@ GaussianCloud random_cloud(std::size_t n, int degree, unsigned seed) {
     }
     for (float& v : c.sh) v = sh(rng);
     return c;
+}
+
+// rho_i of DESIGN §5, written out independently of the bridge: a·exp(-r²/2) = 1/255 at r = sqrt(2 ln(255 a)).
+double expected_visible_radius(double opacity, double rho) {
+    return opacity * 255.0 > 1.0 ? std::min(rho, std::sqrt(2.0 * std::log(255.0 * opacity))) : 0.0;
 }
 
 Mat3 covariance(const float q[4], const float s[3]) {
@@ -73,13 +80,34 @@ Mat3 random_affine(std::mt19937& rng, bool reflect) {
     return a;
 }
 
-TEST(PolygonBridge, PolygonVerticesLieOnTheRhoEllipse) {
+TEST(PolygonBridge, VisibleRadiusIsWhereTheGaussianFallsTo1Over255) {
+    EXPECT_EQ(visible_polygon_radius(1.0f, 3.0f), 3.0f);   // opaque: capped at rho, bit for bit
+    EXPECT_EQ(visible_polygon_radius(0.36f, 3.0f), 3.0f);  // the cap holds down to a = exp(4.5)/255 = 0.3529
+    EXPECT_LT(visible_polygon_radius(0.35f, 3.0f), 3.0f);
+    for (float a : {0.35f, 0.1f, 0.02f, 0.005f, 0.0040f}) {
+        const float r = visible_polygon_radius(a, 3.0f);
+        EXPECT_NEAR(r, std::sqrt(2 * std::log(255.0 * a)), 1e-6) << a;
+        EXPECT_NEAR(a * std::exp(-0.5 * double(r) * r), 1.0 / 255, 1e-6 / 255) << a;  // the rim is at the threshold
+    }
+    // Nothing visible: below 1/255 (the nearest float to 1/255 lies above it), zero, negative, NaN.
+    EXPECT_GT(visible_polygon_radius(1.0f / 255.0f, 3.0f), 0.0f);
+    EXPECT_EQ(visible_polygon_radius(std::nextafter(1.0f / 255.0f, 0.0f), 3.0f), 0.0f);
+    for (float a : {0.0f, -0.5f, float(NAN)}) EXPECT_EQ(visible_polygon_radius(a, 3.0f), 0.0f) << a;
+    EXPECT_EQ(visible_polygon_radius(0.1f, 1.5f), 1.5f);
+}
+
+TEST(PolygonBridge, PolygonVerticesLieOnTheirVisibleRadiusEllipse) {
     GaussianCloud c = random_cloud(50, 0, 1);
+    for (std::size_t i = 0; i < 50; i += 5) c.opacities[i] = 1.0f;  // some at rho itself
     PolygonSettings settings{8, 3.0f};
     SplatPolygons p = gaussians_to_polygons(c, settings);
     ASSERT_EQ(p.vertex_positions.size(), 50u * 8 * 3);
+    std::size_t smaller = 0;
     for (std::size_t i = 0; i < 50; ++i) {
-        // Mahalanobis distance of each vertex from the centre, in the polygon's plane, is rho.
+        const double rho_i = expected_visible_radius(c.opacities[i], 3.0);
+        EXPECT_NEAR(p.polygon_radius[i], rho_i, 1e-6);
+        smaller += rho_i < 3.0;
+        // Mahalanobis distance of each vertex from the centre, in the polygon's plane, is rho_i.
         const Mat3 r = la::quaternion_to_matrix(c.rotations[4 * i], c.rotations[4 * i + 1], c.rotations[4 * i + 2],
                                                 c.rotations[4 * i + 3]);
         for (int k = 0; k < 8; ++k) {
@@ -91,9 +119,19 @@ TEST(PolygonBridge, PolygonVerticesLieOnTheRhoEllipse) {
                 const double proj = la::dot(d, r.column(a)) / c.scales[3 * i + a];
                 m2 += proj * proj;
             }
-            EXPECT_NEAR(std::sqrt(m2), 3.0, 1e-3);
+            EXPECT_NEAR(std::sqrt(m2), rho_i, 1e-3);
+            // The corner's UV is its local polygon coordinate (|uv| = rho_i) and its colour's alpha the opacity, so
+            // the material's a·exp(-|uv|²/2) is the Gaussian's value there: 1/255 on the rim of a faint one.
+            const float* uv = &p.corner_uvs[2 * (8 * i + k)];
+            EXPECT_NEAR(std::hypot(uv[0], uv[1]), rho_i, 1e-6);
+            EXPECT_NEAR(std::atan2(uv[1], uv[0]), std::remainder(2 * M_PI * k / 8, 2 * M_PI), 1e-6);
+            const float alpha = p.corner_colors[4 * (8 * i + k) + 3];
+            EXPECT_EQ(alpha, c.opacities[i]);
+            const double rim = alpha * std::exp(-0.5 * (double(uv[0]) * uv[0] + double(uv[1]) * uv[1]));
+            EXPECT_NEAR(rim, std::max(1.0 / 255, c.opacities[i] * std::exp(-4.5)), 1e-8);
         }
     }
+    EXPECT_GT(smaller, 8u);  // the test covers faint Gaussians (opacities 0.05..1: about a third)
 }
 
 TEST(PolygonBridge, RecoveryIsExactForEveryK) {
@@ -103,6 +141,7 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
         SplatPolygons p = gaussians_to_polygons(c, settings);
         SplatFaceAttributesView attr;
         attr.thickness = p.thickness.data();
+        attr.polygon_radius = p.polygon_radius.data();
         RecoveryOptions options;
         options.polygon = settings;
         RecoveryStats stats;
@@ -120,13 +159,22 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
 }
 
 // The core property of DESIGN §5: an affine image of the polygon is the polygon of the affinely transformed
-// Gaussian. Applied to the mesh vertices (as a lattice or an edit would), including reflections.
-TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVertices) {
+// Gaussian, whatever the face's own radius rho_i. Applied to the mesh vertices (as a lattice or an edit would),
+// including reflections; opacities down to 0.01 give radii rho_i from 1.6 to rho.
+TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVerticesWithPerFaceRadii) {
     std::mt19937 rng(11);
+    std::uniform_real_distribution<float> log_opacity(std::log(0.01f), 0.0f);
     for (bool reflect : {false, true}) {
         GaussianCloud c = random_cloud(300, 0, reflect ? 5 : 6);
+        for (float& a : c.opacities) a = std::exp(log_opacity(rng));
         PolygonSettings settings{8, 3.0f};
         SplatPolygons p = gaussians_to_polygons(c, settings);
+        ASSERT_EQ(p.face_corner_start.size(), c.size());
+        const float smallest = *std::min_element(p.polygon_radius.begin(), p.polygon_radius.end());
+        const std::size_t capped = std::count(p.polygon_radius.begin(), p.polygon_radius.end(), 3.0f);
+        EXPECT_LT(smallest, 1.8f);
+        EXPECT_GT(capped, 10u);
+        EXPECT_LT(capped, 150u);
         std::vector<Mat3> maps(c.size());
         for (std::size_t i = 0; i < c.size(); ++i) {
             maps[i] = random_affine(rng, reflect);
@@ -138,7 +186,9 @@ TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVertices) {
         }
         RecoveryOptions options;
         options.polygon = settings;
-        GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), {}, options);
+        SplatFaceAttributesView attr;
+        attr.polygon_radius = p.polygon_radius.data();
+        GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options);
         for (std::size_t i = 0; i < c.size(); ++i) {
             const float* q = &r.rotations[4 * i];
             const Mat3 rot = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
@@ -158,12 +208,13 @@ TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovari
     GaussianCloud c = random_cloud(400, 0, 21);
     PolygonSettings settings{8, 3.0f};
     SplatPolygons p = gaussians_to_polygons(c, settings);
-    SplatFaceAttributesView attr;
-    attr.opacity = c.opacities.data();
-    attr.thickness = p.thickness.data();
-    attr.rest_centers = c.positions.data();
-    attr.rest_rotations = c.rotations.data();
-    attr.rest_scales = c.scales.data();
+    // The face attributes are the cloud's own values (every Gaussian of random_cloud is visible).
+    ASSERT_EQ(p.invisible_skipped, 0u);
+    EXPECT_EQ(p.opacity, c.opacities);
+    EXPECT_EQ(p.rest_centers, c.positions);
+    EXPECT_EQ(p.rest_rotations, c.rotations);
+    EXPECT_EQ(p.rest_scales, c.scales);
+    const SplatFaceAttributesView attr = attributes_view(p);
     RecoveryOptions options;
     options.polygon = settings;
     RecoveryStats stats;
@@ -195,6 +246,35 @@ TEST(PolygonBridge, UneditedFacesAreExactAndObjectTransformsApplyToTheFullCovari
     }
 }
 
+// A stored rest rotation holding NaN (or zero) was exported unchanged when the face matched the polygon of the
+// identity rotation (rotation_of() takes a non-rotation as the identity). Now such a face is recovered from its
+// polygon, and counted.
+TEST(PolygonBridge, NonFiniteRestRotationIsRecoveredNotExported) {
+    GaussianCloud c = random_cloud(4, 0, 5);
+    c.rotations[0] = 1, c.rotations[1] = c.rotations[2] = c.rotations[3] = 0;  // face 0: the identity's polygon
+    c.rotations[4] = 1, c.rotations[5] = c.rotations[6] = c.rotations[7] = 0;  // face 1 likewise
+    const PolygonSettings settings{8, 3.0f};
+    const SplatPolygons p = gaussians_to_polygons(c, settings);
+    std::vector<float> rest_rotations = c.rotations;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::fill(rest_rotations.begin(), rest_rotations.begin() + 4, nan);
+    std::fill(rest_rotations.begin() + 4, rest_rotations.begin() + 8, 0.0f);
+    SplatFaceAttributesView attr = attributes_view(p);  // with each face's own radius
+    attr.rest_rotations = rest_rotations.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    const GaussianCloud out = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+    ASSERT_EQ(out.size(), 4u);
+    EXPECT_EQ(stats.invalid_rest_rotation, 2u);
+    EXPECT_EQ(stats.unedited, 2u);
+    EXPECT_EQ(stats.recovered, 2u);
+    for (float v : out.rotations) EXPECT_TRUE(std::isfinite(v));
+    for (int i = 0; i < 2; ++i)  // the polygon's Gaussian: the identity rotation's covariance in the polygon plane
+        EXPECT_LT(relative_difference(planar_covariance(&out.rotations[4 * i], &out.scales[3 * i]),
+                                      planar_covariance(&c.rotations[4 * i], &c.scales[3 * i])), 1e-4) << i;
+}
+
 // The viewport's partial recovery: faces_with_moved_vertices finds exactly the faces an edit touched, and
 // recovering only them gives the same rows as a full recovery, bit for bit (SH degree 3 and an object transform,
 // so the moment recovery, the SH rotation and the unedited pass-through all run).
@@ -210,14 +290,8 @@ TEST(PolygonBridge, SubsetRecoveryEqualsTheFullRecoveryOfEditedFaces) {
     const std::vector<std::uint32_t> moved = faces_with_moved_vertices(mesh_view(p), before.data());
     EXPECT_EQ(moved, (std::vector<std::uint32_t>{10, 200}));
 
-    SplatFaceAttributesView attr;
-    attr.opacity = c.opacities.data();
-    attr.thickness = p.thickness.data();
-    attr.sh_degree = 3;
-    attr.sh_local = p.sh_local.data();
-    attr.rest_centers = c.positions.data();
-    attr.rest_rotations = c.rotations.data();
-    attr.rest_scales = c.scales.data();
+    const SplatFaceAttributesView attr = attributes_view(p);
+    EXPECT_EQ(attr.sh_degree, 3);
     RecoveryOptions options;
     options.polygon = settings;
     options.mesh_to_output[0] = 2.0, options.mesh_to_output[3] = 0.5, options.mesh_to_output[6] = 0.3;
@@ -239,6 +313,85 @@ TEST(PolygonBridge, SubsetRecoveryEqualsTheFullRecoveryOfEditedFaces) {
     }
     const std::uint32_t missing[] = {300};
     EXPECT_THROW(recover_gaussians_from_polygons(mesh_view(p), attr, options, nullptr, missing, 1), InvalidArgument);
+}
+
+// Gaussians nothing of which is visible (opacity below 1/255) get no face and are counted; the faces of the others
+// carry their own Gaussian, in order, and an untouched recovery gives exactly those back.
+TEST(PolygonBridge, InvisibleGaussiansGetNoFaceAndAreCounted) {
+    GaussianCloud c = random_cloud(8, 2, 41);
+    const float just_below = std::nextafter(1.0f / 255.0f, 0.0f);
+    const float opacities[8] = {0.5f, just_below, 0.0f, 0.002f, 1.0f / 255.0f, 0.9f, 0.01f, 0.003f};
+    std::copy(opacities, opacities + 8, c.opacities.begin());
+    const std::size_t visible[] = {0, 4, 5, 6};
+    const PolygonSettings settings{6, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    EXPECT_EQ(p.invisible_skipped, 4u);
+    ASSERT_EQ(p.face_corner_start.size(), 4u);
+    ASSERT_EQ(p.vertex_positions.size(), 4u * 6 * 3);
+    ASSERT_EQ(p.sh_local.size(), 4u * 9 * 3);
+    for (std::size_t f = 0; f < 4; ++f) {
+        const std::size_t i = visible[f];
+        EXPECT_EQ(p.face_corner_start[f], std::int32_t(6 * f));
+        EXPECT_EQ(p.opacity[f], c.opacities[i]);
+        EXPECT_NEAR(p.polygon_radius[f], expected_visible_radius(c.opacities[i], 3.0), 1e-6);
+        EXPECT_GT(p.polygon_radius[f], 0.0f);
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_centers[3 * f + k], c.positions[3 * i + k]);
+        for (int k = 0; k < 4; ++k) EXPECT_EQ(p.rest_rotations[4 * f + k], c.rotations[4 * i + k]);
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_scales[3 * f + k], c.scales[3 * i + k]);
+        EXPECT_EQ(p.corner_colors[4 * 6 * f + 3], c.opacities[i]);
+        // The face's polygon is the one gaussian_polygon() makes at rho_i, bit for bit.
+        float polygon[3 * 6];
+        gaussian_polygon(&c.positions[3 * i], &c.rotations[4 * i], &c.scales[3 * i], {6, p.polygon_radius[f]}, polygon);
+        for (int k = 0; k < 18; ++k) EXPECT_EQ(p.vertex_positions[18 * f + k], polygon[k]);
+    }
+    EXPECT_EQ(p.polygon_radius[0], 3.0f);
+
+    const SplatFaceAttributesView attr = attributes_view(p);
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    const GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+    EXPECT_EQ(stats.unedited, 4u);
+    for (std::size_t f = 0; f < 4; ++f) {
+        const std::size_t i = visible[f];
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(r.positions[3 * f + k], c.positions[3 * i + k]);
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(r.scales[3 * f + k], c.scales[3 * i + k]);
+        EXPECT_EQ(r.opacities[f], c.opacities[i]);
+        for (int k = 0; k < 27; ++k) EXPECT_NEAR(r.sh[27 * f + k], c.sh[27 * i + k], 1e-6);
+    }
+}
+
+// Faces made before per-face radii (polygons at the object's rho, no rho_i attribute) and faces the user adds
+// (rho_i = 0, what Blender gives a new face) are recovered with the object's rho: still unedited, still exact.
+TEST(PolygonBridge, FacesWithoutTheirOwnRadiusUseTheObjectsRho) {
+    GaussianCloud c = random_cloud(200, 0, 51);
+    const PolygonSettings settings{8, 2.5f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    // The same Gaussians as polygons at rho, as imports before rho_i made them.
+    gaussian_polygons(c, 0, c.size(), settings, p.vertex_positions.data(), 3 * 8);
+    SplatFaceAttributesView attr;
+    attr.thickness = p.thickness.data();
+    attr.rest_centers = c.positions.data();
+    attr.rest_rotations = c.rotations.data();
+    attr.rest_scales = c.scales.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    const std::vector<float> zero_radii(c.size(), 0.0f);
+    for (const float* radii : {static_cast<const float*>(nullptr), zero_radii.data()}) {
+        attr.polygon_radius = radii;
+        RecoveryStats stats;
+        GaussianCloud r = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+        EXPECT_EQ(stats.unedited, 200u);
+        EXPECT_EQ(r.scales, c.scales);
+        attr.rest_scales = nullptr;  // moments: divides by rho
+        r = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+        EXPECT_EQ(stats.recovered, 200u);
+        for (std::size_t i = 0; i < c.size(); ++i)
+            EXPECT_LT(relative_difference(planar_covariance(&r.rotations[4 * i], &r.scales[3 * i]),
+                                          planar_covariance(&c.rotations[4 * i], &c.scales[3 * i])),
+                      1e-5);
+        attr.rest_scales = c.scales.data();
+    }
 }
 
 TEST(PolygonBridge, DegenerateFacesDoNotCrashAndAreCounted) {

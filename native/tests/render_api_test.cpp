@@ -44,12 +44,12 @@ TEST(RenderApi, EmptySceneRendersWorldColour) {
     scene.set_world(w);
     const Film f = render(scene, looking_at_origin(), small());
     for (std::size_t p = 0; p < f.pixel_count(); ++p) {
-        EXPECT_FLOAT_EQ(f.rgba[4 * p + 0], 0.4f);
-        EXPECT_FLOAT_EQ(f.rgba[4 * p + 1], 0.8f);
-        EXPECT_FLOAT_EQ(f.rgba[4 * p + 2], 1.2f);
-        EXPECT_FLOAT_EQ(f.rgba[4 * p + 3], 1.0f);
-        EXPECT_EQ(f.alpha[p], 0.0f);  // nothing covers the pixel
-        EXPECT_TRUE(std::isinf(f.depth[p]));
+        EXPECT_FLOAT_EQ(f.rgba()[4 * p + 0], 0.4f);
+        EXPECT_FLOAT_EQ(f.rgba()[4 * p + 1], 0.8f);
+        EXPECT_FLOAT_EQ(f.rgba()[4 * p + 2], 1.2f);
+        EXPECT_FLOAT_EQ(f.rgba()[4 * p + 3], 1.0f);
+        EXPECT_EQ(f.alpha()[p], 0.0f);  // nothing covers the pixel
+        EXPECT_TRUE(std::isinf(f.depth()[p]));
     }
 }
 
@@ -153,7 +153,7 @@ TEST(RenderApi, UnpaddedVerticesRenderTheSame) {
     d.vertices_padded = false;
     b.add_mesh(d);
     const Film fa = render(a, looking_at_origin(), small()), fb = render(b, looking_at_origin(), small());
-    EXPECT_EQ(fa.rgba, fb.rgba);
+    EXPECT_EQ(fa.rgba(), fb.rgba());
 }
 
 // The image is a function of the seed: 1 thread and all threads give identical bits; another seed differs.
@@ -181,11 +181,10 @@ TEST(RenderApi, DeterministicRegardlessOfThreads) {
         Film one;
         tbb::task_arena arena(1);
         arena.execute([&] { one = render(scene, looking_at_origin(), s); });
-        EXPECT_EQ(all.rgba, one.rgba);
-        EXPECT_EQ(all.depth, one.depth);
+        EXPECT_TRUE(all.channels == one.channels);
         s.seed = 43;
         const Film other = render(scene, looking_at_origin(), s);
-        EXPECT_NE(all.rgba, other.rgba);
+        EXPECT_TRUE(all.rgba() != other.rgba());
     }
 }
 
@@ -209,13 +208,14 @@ TEST(RenderApi, CancellationStopsPromptly) {
     EXPECT_TRUE(f.stats.cancelled);
     EXPECT_LT(seconds, 0.15 + 0.35);
     for (std::size_t i = 1; i < progress.size(); ++i) EXPECT_GE(progress[i], progress[i - 1]);
-    // No tile can finish 100000 samples in 0.15 s: every pixel is the empty film's (the film is not zeroed before
-    // the tiles run; a cancelled or skipped tile clears its own pixels).
-    ASSERT_EQ(f.rgba.size(), 4u * 128 * 128);
-    for (const float v : f.rgba) ASSERT_EQ(v, 0.0f);
-    for (const float v : f.alpha) ASSERT_EQ(v, 0.0f);
-    for (const float v : f.normal) ASSERT_EQ(v, 0.0f);
-    for (const float v : f.depth) ASSERT_EQ(v, std::numeric_limits<float>::infinity());
+    // The film keeps the sample passes done before the cancel (their values: render_progressive_test), not an empty
+    // image: 0.15 s is many passes of 128 x 128 pixels, far from 100000.
+    ASSERT_EQ(f.rgba().size(), 4u * 128 * 128);
+    EXPECT_GE(f.stats.samples, 1);
+    EXPECT_LT(f.stats.samples, 100000);
+    double coverage = 0.0;
+    for (const float v : f.alpha()) coverage += v;
+    EXPECT_GT(coverage, 0.0);
 
     // Progress reaches 1 on a complete render.
     progress.clear();
@@ -223,7 +223,7 @@ TEST(RenderApi, CancellationStopsPromptly) {
     quick.tile_size = 8;
     const Film g = render(scene, looking_at_origin(), quick, [&](float p) { progress.push_back(p); });
     EXPECT_FALSE(g.stats.cancelled);
-    ASSERT_EQ(progress.size(), 25u);
+    ASSERT_EQ(progress.size(), 25u * quick.samples);  // after each tile's sample pass
     EXPECT_FLOAT_EQ(progress.back(), 1.0f);
 }
 

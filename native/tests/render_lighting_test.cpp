@@ -65,8 +65,8 @@ TEST(RenderLighting, SunOnLambertianPlaneIsAnalytic) {
     const Film film = render(scene, ortho_down(5, 4), direct_only(8));
     const double expected = 0.6 / kPi * 3.0 * std::cos(kPi / 6);
     for (std::size_t p = 0; p < film.pixel_count(); ++p) {
-        ASSERT_NEAR(film.rgba[4 * p], expected, 1e-4 * expected);
-        ASSERT_EQ(film.alpha[p], 1.0f);
+        ASSERT_NEAR(film.rgba()[4 * p], expected, 1e-4 * expected);
+        ASSERT_EQ(film.alpha()[p], 1.0f);
     }
 }
 
@@ -100,7 +100,7 @@ TEST(RenderLighting, PointAndSpotLightsFollowCyclesUnits) {
                     if (std::abs(angle - kPi / 6) < 0.02) continue;  // cone edge
                     expected = angle < kPi / 6 ? expected * cos_s : 0.0;
                 }
-                ASSERT_NEAR(film.rgba[4 * (j * n + i)], expected, 1e-3 * expected + 1e-7) << i << "," << j;
+                ASSERT_NEAR(film.rgba()[4 * (j * n + i)], expected, 1e-3 * expected + 1e-7) << i << "," << j;
             }
     }
 }
@@ -131,7 +131,7 @@ TEST(RenderLighting, AreaLightFollowsCyclesUnits) {
         }
     const double expected = 1.0 / kPi * e;
     double mean = 0;
-    for (std::size_t p = 0; p < film.pixel_count(); ++p) mean += film.rgba[4 * p] / film.pixel_count();
+    for (std::size_t p = 0; p < film.pixel_count(); ++p) mean += film.rgba()[4 * p] / film.pixel_count();
     EXPECT_NEAR(mean, expected, 0.02 * expected);
 }
 
@@ -160,7 +160,7 @@ TEST(RenderLighting, OpaqueSquareCastsShadowOfRightSizeAndPlace) {
             pixel_xy(i, j, n, 8, x, y);
             if (std::abs(x) < 0.6 && std::abs(y) < 0.6) continue;  // the blocker itself
             const bool in_shadow = x > -2.5 && x < -1.5 && y > -0.5 && y < 0.5;
-            ASSERT_NEAR(film.rgba[4 * (j * n + i)], in_shadow ? 0.0 : lit, 1e-4) << "pixel at " << x << "," << y;
+            ASSERT_NEAR(film.rgba()[4 * (j * n + i)], in_shadow ? 0.0 : lit, 1e-4) << "pixel at " << x << "," << y;
             shadowed += in_shadow;
         }
     EXPECT_EQ(shadowed, 64);  // 1 x 1 at 8 pixels per unit
@@ -195,7 +195,7 @@ TEST(RenderLighting, SplatSheetTransmitsPredictedFraction) {
                 pixel_xy(i, j, 16, 8, x, y);
                 const double g = std::exp(-(x * x + y * y) / 8.0);
                 const double expected = 0.5 / kPi * (1 - 0.6 * g) * (1 - 0.3 * g);
-                ASSERT_NEAR(film.rgba[4 * (j * 16 + i)], expected, 1e-4 * expected) << x << "," << y;
+                ASSERT_NEAR(film.rgba()[4 * (j * 16 + i)], expected, 1e-4 * expected) << x << "," << y;
             }
     }
 }
@@ -207,7 +207,7 @@ void red_centroid(const Film& f, double& cx, double& cy, double& total) {
     cx = cy = total = 0;
     for (int j = 0; j < f.height; ++j)
         for (int i = 0; i < f.width; ++i) {
-            const double v = f.rgba[4 * (std::size_t(j) * f.width + i)];
+            const double v = f.rgba()[4 * (std::size_t(j) * f.width + i)];
             cx += v * (i + 0.5);
             cy += v * (j + 0.5);
             total += v;
@@ -313,7 +313,7 @@ TEST(RenderLighting, PrincipledDiffuseMatchesClosedForm) {
         const double c = std::cos(double(theta)), fl = std::pow(1 - c, 5), rr = roughness * (1 + c);
         const double expected = 0.6 / kPi * 3.0 * c * ((1 - 0.5 * fl) + rr * fl);
         for (std::size_t p = 0; p < film.pixel_count(); ++p)
-            EXPECT_NEAR(film.rgba[4 * p], expected, 1e-4 * expected) << "roughness " << roughness;
+            EXPECT_NEAR(film.rgba()[4 * p], expected, 1e-4 * expected) << "roughness " << roughness;
     }
 }
 
@@ -345,7 +345,7 @@ TEST(RenderLighting, AreaLightSeenInMirrorHasItsRadiance) {
     area.light_to_world = Matrix4::translation(0, 0, 2);
     scene.add_light(area);
     const Film film = render(scene, ortho_down(5, 0.8f), direct_only(4));
-    for (std::size_t p = 0; p < film.pixel_count(); ++p) EXPECT_NEAR(film.rgba[4 * p], 100.0 / (4 * 2.0), 1e-4);
+    for (std::size_t p = 0; p < film.pixel_count(); ++p) EXPECT_NEAR(film.rgba()[4 * p], 100.0 / (4 * 2.0), 1e-4);
 }
 
 // Caustics filter (Cycles' caustics tricks): a floor lit only through a mirror above it (an upward-facing area
@@ -379,8 +379,8 @@ TEST(RenderLighting, ReflectiveCausticsCanBeTurnedOff) {
         }
     double mean_on = 0, max_off = 0;
     for (std::size_t p = 0; p < on.pixel_count(); ++p) {
-        mean_on += on.rgba[4 * p] / on.pixel_count();
-        max_off = std::max(max_off, double(off.rgba[4 * p]));
+        mean_on += on.rgba()[4 * p] / on.pixel_count();
+        max_off = std::max(max_off, double(off.rgba()[4 * p]));
     }
     EXPECT_NEAR(mean_on, e / kPi, 0.08 * e / kPi);
     EXPECT_EQ(max_off, 0.0);

@@ -47,7 +47,7 @@ struct TestScene {
 
 double max_difference(const Film& a, const Film& b) {
     double m = 0;
-    for (std::size_t i = 0; i < a.rgba.size(); ++i) m = std::max(m, double(std::abs(a.rgba[i] - b.rgba[i])));
+    for (std::size_t i = 0; i < a.rgba().size(); ++i) m = std::max(m, double(std::abs(a.rgba()[i] - b.rgba()[i])));
     return m;
 }
 

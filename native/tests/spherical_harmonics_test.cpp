@@ -116,3 +116,31 @@ TEST(SphericalHarmonics, BadDegreeThrows) {
 
 }  // namespace
 }  // namespace raysplats
+
+namespace raysplats {
+namespace {
+
+// reflect_sh must give the function seen through the mirror: f'(d) = f(d with the flipped coordinates negated).
+TEST(SphericalHarmonics, ReflectionNegatesTheFlippedCoordinates) {
+    std::mt19937 rng(11);
+    std::normal_distribution<float> g(0.0f, 0.3f);
+    float sh[16 * 3];
+    for (float& v : sh) v = g(rng);
+    for (int flips = 1; flips < 8; ++flips) {
+        const bool fx = flips & 1, fy = flips & 2, fz = flips & 4;
+        float reflected[16 * 3];
+        std::copy(sh, sh + 48, reflected);
+        reflect_sh(3, fx, fy, fz, reflected);
+        for (int trial = 0; trial < 10; ++trial) {
+            double d[3];
+            random_direction(rng, d);
+            const auto expected = evaluate_sh(3, sh, fx ? -d[0] : d[0], fy ? -d[1] : d[1], fz ? -d[2] : d[2]);
+            const auto actual = evaluate_sh(3, reflected, d[0], d[1], d[2]);
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(actual[c], expected[c], 1e-5) << "flips " << flips;
+        }
+    }
+    EXPECT_THROW(reflect_sh(4, true, false, false, sh), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace raysplats

@@ -7,6 +7,7 @@
 
 #include "io_test_util.h"
 #include "raysplats/errors.h"
+#include "raysplats/memory_budget.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
@@ -34,6 +35,47 @@ TEST(SplatFile, DispatchByContentNotName) {
     const std::string p2 = tmp_path("really_spz.dat");
     write_bytes(p2, read_bytes(data_path("biker_v4.spz")));
     EXPECT_EQ(read_splat_file(p2).size(), 152746u);
+}
+
+// The header probe gives what the reader then reads (no splat of these files is dropped), without decoding.
+TEST(SplatFile, ProbeReadsTheHeaderOnly) {
+    const struct {
+        const char* name;
+        SplatFormat format;
+        std::uint64_t count;
+        int degree;
+    } files[] = {{"small_sh3_inria.ply", SplatFormat::Ply, 9080, 3}, {"donut_sh0.ply", SplatFormat::Ply, 45624, 0},
+                 {"small.splat", SplatFormat::Splat, 22764, 0}, {"biker_v4.spz", SplatFormat::Spz, 152746, 0}};
+    for (const auto& f : files) {
+        SCOPED_TRACE(f.name);
+        const SplatFileSummary s = probe_splat_file(data_path(f.name));
+        EXPECT_EQ(s.format, f.format);
+        EXPECT_EQ(s.count, f.count);
+        EXPECT_EQ(s.sh_degree, f.degree);
+        EXPECT_EQ(read_splat_file(data_path(f.name)).size(), f.count);
+    }
+    // An SPZ of SH degree 1 written here.
+    GaussianCloud c;
+    c.resize(5, 1);
+    const std::string spz = tmp_path("probe.spz");
+    write_spz(spz, c);
+    EXPECT_EQ(probe_splat_file(spz).sh_degree, 1);
+    const std::string mesh = tmp_path("probe_mesh.ply");
+    write_text(mesh, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                     "end_header\n0 0 0\n");
+    expect_format_error([&] { probe_splat_file(mesh); }, "probe_mesh.ply", {"point cloud PLY"});
+}
+
+// The import estimate grows with what is imported, and the machine reports some available memory.
+TEST(SplatFile, ImportMemoryEstimate) {
+    EXPECT_EQ(import_memory_bytes(0, 3, 8), 0u);
+    EXPECT_EQ(import_memory_bytes(2000, 0, 8), 2 * import_memory_bytes(1000, 0, 8));
+    EXPECT_GT(import_memory_bytes(1000, 3, 8), import_memory_bytes(1000, 0, 8));
+    EXPECT_GT(import_memory_bytes(1000, 0, 16), import_memory_bytes(1000, 0, 8));
+    // 1.5 M octagons of degree 0: gigabytes (cloud 56 B, polygons ~430 B, mesh ~480 B twice, per Gaussian).
+    EXPECT_GT(import_memory_bytes(1500000, 0, 8), 1500000000u);
+    EXPECT_LT(import_memory_bytes(1500000, 0, 8), 4000000000u);
+    EXPECT_GT(available_memory_bytes(), 0u);
 }
 
 TEST(SplatFileErrors, UnknownFormat) {

@@ -5,7 +5,9 @@
 #include <zstd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
 
 #include "io_test_util.h"
 #include "raysplats/errors.h"
@@ -44,6 +46,17 @@ void ref_rotation_v3(const std::uint8_t* r, double wxyz[4]) {
     xyzw[largest] = std::sqrt(std::max(0.0, 1.0 - ss));
     wxyz[0] = xyzw[3], wxyz[1] = xyzw[0], wxyz[2] = xyzw[1], wxyz[3] = xyzw[2];
 }
+
+// SPZ stores RUB, the core RDF: the reader and writer rotate 180° about x, F = diag(1, -1, -1). Written out
+// here from the real SH basis of the reference 3DGS (sh_utils.py), not from the library's SH rotation: under
+// (x, y, z) -> (x, -y, -z) a basis function changes sign when it is odd in y and z together:
+//   l=1: y, z, x                                                  -> -, -, +
+//   l=2: xy, yz, 3z^2-1, xz, x^2-y^2                              -> -, +, +, -, +
+//   l=3: y(3x^2-y^2), xyz, y(5z^2-1), z(5z^2-3), x(5z^2-1), z(x^2-y^2), x(x^2-3y^2) -> -, +, -, -, +, -, +
+constexpr float kAxisFlip[3] = {1, -1, -1};
+constexpr float kShFlip[16] = {1, -1, -1, 1, -1, 1, 1, -1, 1, -1, 1, -1, -1, 1, -1, 1};
+// RDF quaternion of a stored RUB one (w x y z): F R F, i.e. y and z negated (the reference's convertCoordinates).
+void rub_to_rdf_quaternion(double q[4]) { q[2] = -q[2], q[3] = -q[3]; }
 
 struct RawSpzV4 {
     std::uint32_t version = 0, n = 0;
@@ -85,7 +98,8 @@ TEST(SpzFormat, BikerV4MatchesIndependentDecode) {
     EXPECT_EQ(c.sh_degree, 0);
     for (std::size_t i : sample_indices(c.size())) {
         SCOPED_TRACE(i);
-        for (int j = 0; j < 3; ++j) EXPECT_EQ(c.positions[3 * i + j], ref_position(&raw.s[0][(3 * i + j) * 3], raw.fbits));
+        for (int j = 0; j < 3; ++j)
+            EXPECT_EQ(c.positions[3 * i + j], kAxisFlip[j] * ref_position(&raw.s[0][(3 * i + j) * 3], raw.fbits));
         EXPECT_NEAR(c.opacities[i], ref_alpha(raw.s[1][i]), 1e-6);
         for (int j = 0; j < 3; ++j) EXPECT_NEAR(c.sh[3 * i + j], ref_dc(raw.s[2][3 * i + j]), 1e-5);
         for (int j = 0; j < 3; ++j) {
@@ -94,6 +108,7 @@ TEST(SpzFormat, BikerV4MatchesIndependentDecode) {
         }
         double q[4];
         ref_rotation_v3(&raw.s[4][4 * i], q);
+        rub_to_rdf_quaternion(q);
         for (int j = 0; j < 4; ++j) EXPECT_NEAR(c.rotations[4 * i + j], q[j], 1e-5);
     }
     // Plausible values: a real scene of bounded extent, small Gaussians, a spread of opacities.
@@ -160,7 +175,7 @@ void check_legacy(const GaussianCloud& c, int version) {
     ASSERT_EQ(c.size(), 2u);
     ASSERT_EQ(c.sh_degree, 1);
     const float want_pos[6] = {1.0f, -2.0f, 5 / 1024.0f, -1 / 1024.0f, 300000 / 1024.0f, -8192.0f};
-    for (int j = 0; j < 6; ++j) EXPECT_EQ(c.positions[j], want_pos[j]) << j;
+    for (int j = 0; j < 6; ++j) EXPECT_EQ(c.positions[j], kAxisFlip[j % 3] * want_pos[j]) << j;
     EXPECT_NEAR(c.opacities[0], 1.0, 1e-6);
     EXPECT_NEAR(c.opacities[1], 0.2, 1e-6);
     const int colours[6] = {128, 0, 255, 77, 178, 10};
@@ -169,13 +184,15 @@ void check_legacy(const GaussianCloud& c, int version) {
     const int scales[6] = {160, 0, 255, 144, 100, 96};
     for (int j = 0; j < 6; ++j) EXPECT_NEAR(c.scales[j], ref_scale(std::uint8_t(scales[j])), 1e-6 * ref_scale(std::uint8_t(scales[j])));
     for (int i = 0; i < 2; ++i)
-        for (int k = 0; k < 9; ++k) EXPECT_NEAR(c.sh[i * 12 + 3 + k], ref_sh(std::uint8_t((i * 9 + k) * 13)), 1e-6) << i << " " << k;
+        for (int k = 0; k < 9; ++k)
+            EXPECT_NEAR(c.sh[i * 12 + 3 + k], kShFlip[1 + k / 3] * ref_sh(std::uint8_t((i * 9 + k) * 13)), 1e-6) << i << " " << k;
     if (version == 2) {
         // Reference v2 decoding: x,y,z = byte/127.5 - 1, w = sqrt(max(0, 1 - |xyz|^2)); we then normalise.
         const int rb[2][3] = {{128, 128, 128}, {255, 128, 128}};
         for (int i = 0; i < 2; ++i) {
             double q[4] = {0, rb[i][0] / 127.5 - 1, rb[i][1] / 127.5 - 1, rb[i][2] / 127.5 - 1};
             q[0] = std::sqrt(std::max(0.0, 1 - (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])));
+            rub_to_rdf_quaternion(q);
             const double nq = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
             for (int j = 0; j < 4; ++j) EXPECT_NEAR(c.rotations[4 * i + j], q[j] / nq, 1e-6) << i << " " << j;
         }
@@ -188,7 +205,7 @@ void check_legacy(const GaussianCloud& c, int version) {
         const double nq = std::sqrt(2 * m * m + y * y);
         EXPECT_NEAR(c.rotations[4], m / nq, 1e-5);   // w
         EXPECT_NEAR(c.rotations[5], -m / nq, 1e-5);  // x
-        EXPECT_NEAR(c.rotations[6], y / nq, 1e-5);   // y
+        EXPECT_NEAR(c.rotations[6], -y / nq, 1e-5);  // y (negated: RUB -> RDF)
         EXPECT_NEAR(c.rotations[7], 0.0, 1e-6);      // z
     }
 }
@@ -268,6 +285,123 @@ TEST(SpzFormat, SpzRoundTripIsStable) {
         double dot = 0;
         for (int j = 0; j < 4; ++j) dot += double(a.rotations[4 * i + j]) * b.rotations[4 * i + j];
         ASSERT_GT(std::fabs(dot), 1.0 - 5e-6) << i;
+    }
+}
+
+// The bytes we write are RUB: each stored value is the RDF cloud's, rotated 180° about x, decoded here
+// independently (zstd + the reference formulas + the sign table above), not with the library's reader.
+TEST(SpzFormat, WriterStoresRub) {
+    const GaussianCloud a = read_ply(data_path("small_sh3_inria.ply"));
+    const std::string out = tmp_path("small_sh3_rub.spz");
+    write_spz(out, a);
+    const RawSpzV4 raw = decode_v4(out);
+    ASSERT_EQ(raw.degree, 3);
+    for (std::size_t i = 0; i < a.size(); i += 97) {
+        SCOPED_TRACE(i);
+        for (int j = 0; j < 3; ++j)
+            ASSERT_NEAR(ref_position(&raw.s[0][(3 * i + j) * 3], raw.fbits), kAxisFlip[j] * a.positions[3 * i + j], 0.5 / 4096 + 1e-7);
+        double q[4];
+        ref_rotation_v3(&raw.s[4][4 * i], q);
+        double dot = q[0] * a.rotations[4 * i] + q[1] * a.rotations[4 * i + 1] - q[2] * a.rotations[4 * i + 2] - q[3] * a.rotations[4 * i + 3];
+        ASSERT_GT(std::fabs(dot), 1.0 - 5e-6);
+        for (int k = 1; k < 16; ++k)
+            for (int ch = 0; ch < 3; ++ch) {
+                const double want = std::min(std::max(kShFlip[k] * double(a.sh[(i * 16 + k) * 3 + ch]), -1.0), 127.0 / 128);
+                ASSERT_NEAR(ref_sh(raw.s[5][(i * 15 + (k - 1)) * 3 + ch]), want, 1.0 / 256 + 1e-6) << k;
+            }
+    }
+}
+
+// "Upright": the scene's vertical extent keeps its sign. small_sh3_inria's ground is at +y (RDF: y down), so most
+// of its Gaussians are below... whichever way it is, the mean y of a chain's output must equal the source's.
+void expect_same_scene(const GaussianCloud& a, const GaussianCloud& b, double position_tolerance) {
+    ASSERT_EQ(a.size(), b.size());
+    double mean_a = 0, mean_b = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        for (int j = 0; j < 3; ++j) ASSERT_NEAR(b.positions[3 * i + j], a.positions[3 * i + j], position_tolerance) << i;
+        mean_a += a.positions[3 * i + 1], mean_b += b.positions[3 * i + 1];
+    }
+    EXPECT_NEAR(mean_b, mean_a, position_tolerance * double(a.size()));
+}
+
+// ply -> spz -> ply and spz -> ply -> spz: positions within the fixed point's half step, nothing flipped (before:
+// the .spz written from a .ply opened upside down, and y and z of every position came back negated).
+TEST(SpzFormat, ConversionChainsKeepTheSceneUpright) {
+    const GaussianCloud ply = read_ply(data_path("small_sh3_inria.ply"));
+    const std::string spz = tmp_path("chain.spz"), ply2 = tmp_path("chain.ply");
+    write_spz(spz, ply);
+    write_ply(ply2, read_spz(spz));
+    const RawPly raw(ply2);  // the second .ply, read independently
+    for (std::size_t i = 0; i < ply.size(); ++i)
+        for (int j = 0; j < 3; ++j) ASSERT_NEAR(raw.get(i, j == 0 ? "x" : j == 1 ? "y" : "z"), ply.positions[3 * i + j], 0.5 / 4096 + 1e-6);
+    expect_same_scene(ply, read_ply(ply2), 0.5 / 4096 + 1e-6);
+
+    // spz -> ply -> spz: positions, alphas, colours and scales come back byte for byte, and so does every
+    // rotation (the 9-bit smallest-three encoding is re-derived from the decoded quaternion).
+    const std::string biker = data_path("biker_v4.spz"), via = tmp_path("biker_via.ply"), back = tmp_path("biker_back.spz");
+    write_ply(via, read_spz(biker));
+    write_spz(back, read_ply(via));
+    const RawSpzV4 src = decode_v4(biker), dst = decode_v4(back);
+    ASSERT_EQ(src.streams, dst.streams);
+    ASSERT_EQ(src.fbits, dst.fbits);
+    static const char* const names[5] = {"positions", "alphas", "colours", "scales", "rotations"};
+    for (int k = 0; k < src.streams; ++k) {
+        std::size_t differ = 0;
+        for (std::size_t b = 0; b < src.s[k].size(); ++b) differ += src.s[k][b] != dst.s[k][b];
+        EXPECT_EQ(differ, 0u) << names[k] << " bytes that differ, of " << src.s[k].size();
+    }
+}
+
+// PlayCanvas splat-transform, the reference converter, must read our .spz as the scene we wrote, and we must read
+// its .spz as the scene it converted. Found at $RAYSPLATS_SPLAT_TRANSFORM or in the npm test-tool folder
+// ($RAYSPLATS_NPM_DIR, default ~/.cache/raysplats/npm: `npm install --prefix DIR @playcanvas/splat-transform`);
+// skipped when absent (no network in tests).
+std::string splat_transform() {
+    std::vector<std::string> candidates;
+    if (const char* e = std::getenv("RAYSPLATS_SPLAT_TRANSFORM")) candidates.push_back(e);
+    const char* npm = std::getenv("RAYSPLATS_NPM_DIR");
+    const char* home = std::getenv("HOME");
+    const std::string dir = npm ? npm : home ? std::string(home) + "/.cache/raysplats/npm" : "";
+    if (!dir.empty()) candidates.push_back(dir + "/node_modules/.bin/splat-transform");
+    for (const std::string& c : candidates)
+        if (std::ifstream(c).good()) return c;
+    return "";
+}
+
+TEST(SpzFormat, SplatTransformAgreesOnOrientation) {
+    const std::string tool = splat_transform();
+    if (tool.empty())
+        GTEST_SKIP() << "splat-transform not installed (set RAYSPLATS_SPLAT_TRANSFORM or install @playcanvas/splat-transform "
+                        "into the npm test-tool folder)";
+    const GaussianCloud a = read_ply(data_path("small_sh3_inria.ply"));
+    const std::string ours = tmp_path("for_splat_transform.spz"), theirs_ply = tmp_path("splat_transform_of_ours.ply"),
+                      theirs_spz = tmp_path("splat_transform_of_ply.spz");
+    write_spz(ours, a);
+    for (const auto& [in, out] : {std::pair<std::string, std::string>{ours, theirs_ply}, {data_path("small_sh3_inria.ply"), theirs_spz}}) {
+        const std::string command = "timeout 120 '" + tool + "' -w '" + in + "' '" + out + "' > /dev/null 2>&1";
+        ASSERT_EQ(std::system(command.c_str()), 0) << command;
+    }
+    for (const std::string& path : {theirs_ply, theirs_spz}) {
+        SCOPED_TRACE(path);
+        const GaussianCloud b = read_splat_file(path);
+        ASSERT_EQ(b.size(), a.size());
+        double ab = 0, aa = 0, bb = 0;
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            for (int j = 0; j < 3; ++j) ASSERT_NEAR(b.positions[3 * i + j], a.positions[3 * i + j], 2.0 / 4096) << i;
+            double dot = 0;
+            for (int j = 0; j < 4; ++j) dot += double(a.rotations[4 * i + j]) * b.rotations[4 * i + j];
+            ASSERT_GT(std::fabs(dot), 0.995) << i;
+            // SH keep their signs (a wrong flip would negate half of them): within the reference encoder's
+            // coarser SH steps (5 bits for band 1, 4 for bands 2 and 3: errors up to 1/16), and correlated.
+            for (int k = 3; k < 48; ++k) {
+                ASSERT_NEAR(b.sh[48 * i + k], a.sh[48 * i + k], 1.0 / 16 + 1.0 / 128) << i << " " << k;
+                ab += double(a.sh[48 * i + k]) * b.sh[48 * i + k], aa += double(a.sh[48 * i + k]) * a.sh[48 * i + k];
+                bb += double(b.sh[48 * i + k]) * b.sh[48 * i + k];
+            }
+        }
+        // 1 would be exact; 4-bit steps zero the many small coefficients (0.80 measured). Flipping the 9 odd
+        // coefficients of 15 would give about -0.2.
+        EXPECT_GT(ab / std::sqrt(aa * bb), 0.6);
     }
 }
 

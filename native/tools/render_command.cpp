@@ -4,23 +4,30 @@
 //   raysplats render SPLATS [MESH.obj ...] [options]
 //   raysplats render --scene scene.json [options]          (command-line options override the file)
 //
-// JSON scene (every key optional; angles in degrees, matrices row-major 4x4 like Blender's matrix_world):
+// The "render" and "camera" objects use the core's names, the same the Blender add-on passes
+// (raysplats/render/render_settings.h, raysplats/render/camera_parameters.h); an unknown name is an error.
+// Angles are radians, matrices row-major 4x4 like Blender's matrix_world. Every key is optional:
 //   {"splats": {"file": "scene.ply", "matrix": [16 numbers]},
 //    "meshes": [{"file": "floor.obj", "matrix": [...], "material": "name"}],
 //    "materials": {"name": {"base_color": [r,g,b], "metallic": 0, "roughness": 0.5, "specular": 0.5,
 //                           "transmission": 0, "ior": 1.45, "emission": [r,g,b], "emission_strength": 1,
 //                           "alpha": 1}},
-//    "camera": {"type": "perspective|orthographic|equirectangular|fisheye_equidistant|fisheye_equisolid",
+//    "camera": {"type": "PERSP|ORTHO|EQUIRECTANGULAR|FISHEYE_EQUIDISTANT|FISHEYE_EQUISOLID",
 //               "position": [x,y,z], "target": [x,y,z], "up": [0,0,1]  (or "matrix": [...]),
-//               "lens": 50, "sensor_width": 36, "sensor_height": 24, "sensor_fit": "auto|horizontal|vertical",
-//               "shift": [x,y], "clip": [start,end], "ortho_scale": 6, "fov": 180, "fisheye_lens": 10.5,
-//               "longitude": [-180,180], "latitude": [-90,90]},
+//               "lens": 50, "sensor_width": 36, "sensor_height": 24, "sensor_fit": "AUTO|HORIZONTAL|VERTICAL",
+//               "shift_x": 0, "shift_y": 0, "clip_start": 0.1, "clip_end": 1000, "ortho_scale": 6,
+//               "fisheye_fov": 3.14159, "fisheye_lens": 10.5, "longitude_min": -3.14159, "longitude_max": 3.14159,
+//               "latitude_min": -1.5708, "latitude_max": 1.5708},
 //    "lights": [{"type": "point|sun|spot|area|disk", "color": [1,1,1], "power": 1000,
-//                "position": [...], "target": [...]  (or "matrix"), "size": [x,y], "spot_size": 45,
+//                "position": [...], "target": [...]  (or "matrix"), "size": [x,y], "spot_size": 0.785,
 //                "spot_blend": 0.15, "angle": 0}],
 //    "world": {"color": [r,g,b], "strength": 1},
-//    "render": {"width": 1280, "height": 720, "spp": 16, "bounces": 4, "seed": 0, "mode": "flat|volumetric",
-//               "stochastic": false, "threshold": 0.001, "meshes_shadow_gaussians": false, "transparent": false}}
+//    "render": {"width": 1280, "height": 720, "samples": 16, "max_bounces": 4, "seed": 0,
+//               "gaussian_mode": "FLAT|VOLUMETRIC", "compositing": "SORTED|STOCHASTIC",
+//               "transmittance_threshold": 0.001, "meshes_shadow_gaussians": false,
+//               "transparent_background": false, ...every render setting}}
+#include <algorithm>
+#include <cctype>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -36,6 +43,7 @@
 #include <nlohmann/json.hpp>
 
 #include "raysplats/errors.h"
+#include "raysplats/render/camera_parameters.h"
 #include "raysplats/render/renderer.h"
 #include "raysplats/splat_io.h"
 
@@ -44,7 +52,6 @@ namespace {
 
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
-constexpr float kDeg = 3.14159265358979f / 180.0f;
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -164,28 +171,33 @@ Matrix4 placement(const json& j, const char* what, std::array<float, 3> default_
     return Matrix4::translation(pos[0], pos[1], pos[2]);
 }
 
+// A JSON value as a ParameterValue of its own type; the table checks it against the parameter's.
+ParameterValue parameter_value_from(const json& j, const std::string& name, const char* what) {
+    if (j.is_boolean()) return j.get<bool>();
+    if (j.is_number_integer()) return j.get<std::int64_t>();
+    if (j.is_number()) return j.get<double>();
+    if (j.is_string()) return j.get<std::string>();
+    if (j.is_array()) return matrix(j, name.c_str());
+    throw InvalidArgument(std::string(what) + " '" + name + "' cannot be " + j.type_name());
+}
+
+// Sets `target` from every key of `object` but those in `skip`, through `table`: unknown names are errors.
+template <typename Target>
+void apply_json(const json& object, const ParameterTable<Target>& table, Target& target,
+                std::initializer_list<const char*> skip = {}) {
+    if (!object.is_object()) throw InvalidArgument(std::string(table.what()) + "s: expected a JSON object");
+    for (const auto& [key, value] : object.items()) {
+        if (std::find_if(skip.begin(), skip.end(), [&](const char* s) { return key == s; }) != skip.end()) continue;
+        table.find(key);  // an unknown name is the error, whatever its value
+        table.set(target, key, parameter_value_from(value, key, table.what()));
+    }
+}
+
 Camera parse_camera(const json& j) {
     Camera c;
-    const std::string type = j.value("type", "perspective");
-    if (type == "perspective") c.type = CameraType::Perspective;
-    else if (type == "orthographic") c.type = CameraType::Orthographic;
-    else if (type == "equirectangular") c.type = CameraType::Equirectangular;
-    else if (type == "fisheye_equidistant") c.type = CameraType::FisheyeEquidistant;
-    else if (type == "fisheye_equisolid") c.type = CameraType::FisheyeEquisolid;
-    else throw InvalidArgument("camera: unknown type '" + type + "'");
-    c.camera_to_world = placement(j, "camera", {0, 0, 1});
-    c.focal_length_mm = j.value("lens", c.focal_length_mm);
-    c.sensor_width_mm = j.value("sensor_width", c.sensor_width_mm);
-    c.sensor_height_mm = j.value("sensor_height", c.sensor_height_mm);
-    const std::string fit = j.value("sensor_fit", "auto");
-    c.sensor_fit = fit == "horizontal" ? SensorFit::Horizontal : fit == "vertical" ? SensorFit::Vertical : SensorFit::Auto;
-    if (j.contains("shift")) c.shift_x = j["shift"][0].get<float>(), c.shift_y = j["shift"][1].get<float>();
-    if (j.contains("clip")) c.clip_start = j["clip"][0].get<float>(), c.clip_end = j["clip"][1].get<float>();
-    c.ortho_scale = j.value("ortho_scale", c.ortho_scale);
-    if (j.contains("fov")) c.fisheye_fov = j["fov"].get<float>() * kDeg;
-    c.fisheye_lens_mm = j.value("fisheye_lens", c.fisheye_lens_mm);
-    if (j.contains("longitude")) c.longitude_min = j["longitude"][0].get<float>() * kDeg, c.longitude_max = j["longitude"][1].get<float>() * kDeg;
-    if (j.contains("latitude")) c.latitude_min = j["latitude"][0].get<float>() * kDeg, c.latitude_max = j["latitude"][1].get<float>() * kDeg;
+    // position / target / up / direction place the camera as a convenience of this tool; "matrix" is the core's.
+    apply_json(j, camera_parameters(), c, {"position", "target", "up", "direction"});
+    if (!j.contains("matrix")) c.camera_to_world = placement(j, "camera", {0, 0, 1});
     return c;
 }
 
@@ -206,9 +218,9 @@ Light parse_light(const json& j) {
         l.size_x = s.is_array() ? s[0].get<float>() : s.get<float>();
         l.size_y = s.is_array() ? s[1].get<float>() : l.size_x;
     }
-    if (j.contains("spot_size")) l.spot_size = j["spot_size"].get<float>() * kDeg;
+    l.spot_size = j.value("spot_size", l.spot_size);
     l.spot_blend = j.value("spot_blend", l.spot_blend);
-    if (j.contains("angle")) l.sun_angle = j["angle"].get<float>() * kDeg;
+    l.sun_angle = j.value("angle", l.sun_angle);
     return l;
 }
 
@@ -235,18 +247,58 @@ json csv(const std::string& s) {
     return a;
 }
 
+// "--max-bounces" -> "max_bounces"; empty when `option` is not a render setting's option.
+std::string render_setting_of_option(const std::string& option) {
+    if (option.rfind("--", 0) != 0) return "";
+    std::string name = option.substr(2);
+    std::replace(name.begin(), name.end(), '-', '_');
+    for (const auto& p : render_setting_parameters().parameters())
+        if (name == p.name) return name;
+    return "";
+}
+
+// A name typed on the command line, matched to the setting's choices without regard to case ("stochastic" is
+// STOCHASTIC); a name that matches none is passed on as typed, so that the core's error lists the known ones.
+std::string choice_named(const std::string& setting, const std::string& typed) {
+    auto lower = [](std::string s) {
+        for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+        return s;
+    };
+    for (const std::string& choice : render_setting_parameters().find(setting).choices)
+        if (lower(choice) == lower(typed)) return choice;
+    return typed;
+}
+
 void usage() {
+    std::string settings;
+    for (const auto& p : render_setting_parameters().parameters()) {
+        std::string option = p.name;
+        std::replace(option.begin(), option.end(), '_', '-');
+        std::string line = "  --" + option;
+        if (p.type == ParameterType::Bool) {
+            line = "  --[no-]" + option;
+        } else if (p.type == ParameterType::Name) {
+            line += " ";
+            for (std::size_t i = 0; i < p.choices.size(); ++i) line += (i ? "|" : "") + p.choices[i];
+        } else {
+            line += p.type == ParameterType::Integer ? " N" : " X";
+        }
+        line.resize(std::max<std::size_t>(line.size() + 1, 42), ' ');
+        settings += line + p.description + "\n";
+    }
+    std::string models;
+    for (const auto& m : camera_model_names().values) models += (models.empty() ? "" : "|") + std::string(m.name);
     std::fprintf(stderr,
                  "usage: raysplats render [SPLATS] [MESH.obj ...] [options]\n"
                  "  --scene FILE.json        scene description (see native/tools/render_command.cpp)\n"
                  "  -o, --output FILE        .png (8-bit sRGB) or .pfm (linear); default render.png\n"
                  "  --pfm FILE               also write the linear image as PFM\n"
-                 "  --width W --height H --spp N --bounces N --seed S\n"
-                 "  --mode flat|volumetric   --stochastic   --threshold T   --transparent\n"
+                 "render settings (the JSON \"render\" object's names):\n%s"
                  "  --camera-pos x,y,z --camera-target x,y,z --camera-up x,y,z --lens MM\n"
-                 "  --camera TYPE            perspective|orthographic|equirectangular|fisheye_equidistant|fisheye_equisolid\n"
+                 "  --camera TYPE            %s\n"
                  "  --sun dx,dy,dz,strength  (direction the light travels)   --point x,y,z,watts\n"
-                 "  --world r,g,b,strength\n");
+                 "  --world r,g,b,strength\n",
+                 settings.c_str(), models.c_str());
 }
 
 }  // namespace
@@ -276,15 +328,18 @@ int render_command(int argc, char** argv) {
                 }
             } else if (a == "-o" || a == "--output") output = next();
             else if (a == "--pfm") pfm = next();
-            else if (a == "--width") cli_render["width"] = std::stoi(next());
-            else if (a == "--height") cli_render["height"] = std::stoi(next());
-            else if (a == "--spp") cli_render["spp"] = std::stoi(next());
-            else if (a == "--bounces") cli_render["bounces"] = std::stoi(next());
-            else if (a == "--seed") cli_render["seed"] = std::stoul(next());
-            else if (a == "--mode") cli_render["mode"] = next();
-            else if (a == "--stochastic") cli_render["stochastic"] = true;
-            else if (a == "--threshold") cli_render["threshold"] = std::stof(next());
-            else if (a == "--transparent") cli_render["transparent"] = true;
+            else if (const std::string name = render_setting_of_option(a); !name.empty()) {
+                switch (render_setting_parameters().find(name).type) {
+                    case ParameterType::Bool: cli_render[name] = true; break;
+                    case ParameterType::Integer: cli_render[name] = std::stoll(next()); break;
+                    case ParameterType::Real: cli_render[name] = std::stod(next()); break;
+                    case ParameterType::Name: cli_render[name] = choice_named(name, next()); break;
+                    default: cli_render[name] = next(); break;
+                }
+            } else if (const std::string negated = a.rfind("--no-", 0) == 0 ? render_setting_of_option("--" + a.substr(5)) : "";
+                       !negated.empty() && render_setting_parameters().find(negated).type == ParameterType::Bool) {
+                cli_render[negated] = false;
+            }
             else if (a == "--camera") cli_camera["type"] = next();
             else if (a == "--camera-pos") cli_camera["position"] = csv(next());
             else if (a == "--camera-target") cli_camera["target"] = csv(next());
@@ -325,18 +380,10 @@ int render_command(int argc, char** argv) {
             return 2;
         }
 
-        const json r = scene_json.value("render", json::object());
         RenderSettings st;
-        st.width = r.value("width", 1280);
-        st.height = r.value("height", 720);
-        st.samples = r.value("spp", 16);
-        st.max_bounces = r.value("bounces", 4);
-        st.seed = r.value("seed", 0u);
-        st.gaussian_mode = r.value("mode", std::string("flat")) == "volumetric" ? GaussianMode::Volumetric : GaussianMode::Flat;
-        st.compositing = r.value("stochastic", false) ? Compositing::Stochastic : Compositing::Sorted;
-        st.transmittance_threshold = r.value("threshold", st.transmittance_threshold);
-        st.meshes_shadow_gaussians = r.value("meshes_shadow_gaussians", false);
-        st.transparent_background = r.value("transparent", false);
+        st.width = 1280;  // the tool's default image: 720p
+        st.height = 720;
+        apply_json(scene_json.value("render", json::object()), render_setting_parameters(), st);
         st.validate();
 
         Scene scene;

@@ -1,11 +1,9 @@
 # The RaySplats render engine (id 'RAYSPLATS'): a thin RenderEngine subclass; final renders go to final.py,
 # the viewport to viewport.py, the scene conversion to sync.py (BlendLuxCore's layout).
-import traceback
-
 import bpy
 
-from .. import native
-from . import final, properties, sync, ui, viewport
+from .. import errors
+from . import final, passes, properties, sync, ui, viewport
 
 
 class RaySplatsRenderEngine(bpy.types.RenderEngine):
@@ -20,26 +18,19 @@ class RaySplatsRenderEngine(bpy.types.RenderEngine):
         self.viewport_state = viewport.ViewportState()
 
     def _fail(self, error):
-        message = f"RaySplats: {error}"
-        self.report({"ERROR"}, message)
-        if hasattr(self, "error_set"):
-            self.error_set(message)
+        """Reports an exception of an entry point (errors.report_exception) and shows it in the render window."""
+        self.error_set(errors.report_exception(self.report, error, "RaySplats: "))
 
+    # Blender calls these entry points; an exception must not escape them (it would end a render with a half
+    # result and a Python traceback in place of a message).
     def render(self, depsgraph):
         try:
             final.render_final(self, depsgraph)
-        except (native.NativeModuleMissing, RuntimeError, ValueError, OSError) as error:
-            self._fail(error)
-        except Exception as error:  # never let an unexpected error take Blender down with a half result
-            traceback.print_exc()
+        except Exception as error:
             self._fail(error)
 
     def update_render_passes(self, scene=None, renderlayer=None):
-        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
-        if renderlayer.use_pass_z:
-            self.register_pass(scene, renderlayer, "Depth", 1, "Z", "VALUE")
-        if renderlayer.use_pass_normal:
-            self.register_pass(scene, renderlayer, "Normal", 3, "XYZ", "VECTOR")
+        passes.register_passes(self, scene, renderlayer)
 
     def view_update(self, context, depsgraph):
         try:
@@ -51,12 +42,12 @@ class RaySplatsRenderEngine(bpy.types.RenderEngine):
         try:
             viewport.view_draw(self, context, depsgraph)
         except Exception as error:
-            traceback.print_exc()
             self._fail(error)
 
 
 def register():
     properties.register()
+    passes.register()
     bpy.utils.register_class(RaySplatsRenderEngine)
     ui.register()
 
@@ -64,6 +55,7 @@ def register():
 def unregister():
     ui.unregister()
     bpy.utils.unregister_class(RaySplatsRenderEngine)
+    passes.unregister()
     properties.unregister()
 
 

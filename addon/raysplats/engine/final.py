@@ -1,13 +1,20 @@
 # Final render (F12, `blender -b … -f/-a`): depsgraph -> native scene -> a render on a native thread, polled
-# here for progress and Esc, then one bulk write per pass into the render result.
+# here for progress and Esc. The core renders in sample passes: the render window shows the film of the passes done
+# (engine.update_result) as they complete, and Esc ends the render keeping them, as Cycles does. Each write is one
+# bulk write per pass into the render result (passes.py).
 import time
 
-import numpy as np
-
 from .. import native
-from . import sync
+from . import passes, sync
 
 POLL_SECONDS = 0.05
+# The render window shows a new image at most this often (and at most once per sample pass): a snapshot of a
+# 1920 x 1080 film is ~80 MB to copy and write.
+UPDATE_SECONDS = 1.0
+
+# Diagnostics of the last final render, for status displays and tests: the samples of each partial result shown
+# (with its time from the render's start), and the samples and cancel state of the image kept.
+last_render = {"partial_results": [], "samples": 0, "cancelled": False}
 
 
 def _border(scene, width, height):
@@ -18,12 +25,6 @@ def _border(scene, width, height):
     x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
     y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
     return x0, y0, max(1, x1 - x0), max(1, y1 - y0)
-
-
-def _set_pass(render_pass, pixels):
-    """One bulk write of a pass: rows bottom to top, (pixels, channels) as RenderPass.rect takes them."""
-    channels = render_pass.channels
-    render_pass.rect = np.ascontiguousarray(pixels, dtype=np.float32).reshape(-1, channels)
 
 
 def render_final(engine, depsgraph):
@@ -42,17 +43,6 @@ def render_final(engine, depsgraph):
     render_scene.build(settings.gaussian_mode)
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
     job = core.RenderJob(render_scene, camera, sync.render_settings(scene, width, height, settings.samples))
-    while not job.wait(POLL_SECONDS):
-        if engine.test_break():
-            job.cancel()
-        engine.update_progress(job.progress)
-        engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | "
-                                f"Rendering {int(100 * job.progress)}% of {settings.samples} samples")
-    film = job.result()
-    if film["cancelled"]:
-        return
-    print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
-          f"{stats.splats:,} splats, {stats.triangles:,} triangles")
 
     # Film rows run top to bottom; Blender's from the bottom up.
     x, y, w, h = _border(scene, width, height)
@@ -62,14 +52,32 @@ def render_final(engine, depsgraph):
         result = engine.begin_result(x, y, w, h)
     else:
         result = engine.begin_result(0, 0, w, h)
-    layer = result.layers[0]
-    _set_pass(layer.passes["Combined"], film["rgba"][rows, cols][::-1])
-    depth_pass = layer.passes.get("Depth")
-    if depth_pass is not None:
-        depth = film["depth"][rows, cols][::-1]
-        _set_pass(depth_pass, np.where(np.isfinite(depth), depth, 1e10))
-    normal_pass = layer.passes.get("Normal")
-    if normal_pass is not None:
-        _set_pass(normal_pass, film["normal"][rows, cols][::-1])
+    last_render.update(partial_results=[], samples=0, cancelled=False)
+    started = time.perf_counter()
+    try:
+        shown_samples, shown_at = 0, started
+        while not job.wait(POLL_SECONDS):
+            if engine.test_break():
+                job.cancel()
+            engine.update_progress(job.progress)
+            done = job.snapshot_samples
+            engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | "
+                                    f"Sample {done}/{settings.samples} ({int(100 * job.progress)}%)")
+            if done > shown_samples and time.perf_counter() - shown_at >= UPDATE_SECONDS:
+                film = job.snapshot()
+                passes.write_passes(result.layers[0], film, rows, cols)
+                engine.update_result(result)
+                shown_samples, shown_at = film["samples"], time.perf_counter()
+                last_render["partial_results"].append((shown_at - started, shown_samples))
+        film = job.result()
+    except BaseException:
+        engine.end_result(result, cancel=True)  # no half-written result left open in Blender
+        raise
+    # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
+    print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
+          f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''}, "
+          f"{stats.splats:,} splats, {stats.triangles:,} triangles")
+    passes.write_passes(result.layers[0], film, rows, cols)
     engine.end_result(result)
+    last_render.update(samples=film["samples"], cancelled=film["cancelled"])
     engine.update_progress(1.0)

@@ -38,6 +38,18 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
         name="Meshes Shadow Gaussians", default=False,
         description="Darken Gaussians that meshes hide from the lights (Gaussians otherwise keep their baked light)")
     seed: IntProperty(name="Seed", default=0, min=0, description="Seed of the sampling pattern")
+    # Cycles' defaults (Blackman-Harris, 1.5 px), so that renders compare with Cycles'; Box at 1 px is the plain
+    # in-pixel jitter of RaySplats before filters.
+    pixel_filter: EnumProperty(
+        name="Pixel Filter", default="BLACKMAN_HARRIS",
+        items=(("BOX", "Box", "Samples spread evenly over the filter width (1 px: the pixel's own square)"),
+               ("GAUSSIAN", "Gaussian", "Gaussian weights, sigma = width / 4"),
+               ("BLACKMAN_HARRIS", "Blackman-Harris", "Blackman-Harris window over twice the width (Cycles' "
+                                                      "default): sharper than the Gaussian, few ringing artefacts")),
+        description="How samples are spread around each pixel and weighted (Film > Pixel Filter)")
+    filter_width: FloatProperty(
+        name="Width", default=1.5, min=0.01, max=10.0, subtype="PIXEL",
+        description="Width of the pixel filter, in pixels (smaller: sharper and more aliased)")
 
 
 class RaySplatsCameraSettings(bpy.types.PropertyGroup):

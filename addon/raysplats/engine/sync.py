@@ -1,18 +1,12 @@
 # Depsgraph -> native RenderScene: meshes (modifiers applied, instances included), Gaussian objects recovered
 # from their evaluated meshes, materials (materials.py), lights in Blender units, the world and the camera.
 
-import math
-
 import bpy
 import numpy as np
 
-from .. import gaussian_mesh, native
-from .materials import MaterialTable, input_value
-
-
-# The native area light emits radiance P / (4 A), Cycles 3.x's convention (kernel/light/area.h: eval_fac =
-# 0.25 * invarea). Cycles 4.x emits P / (pi A) (eval_fac = M_1_PI_F * invarea), so the same power is 4 / pi brighter.
-AREA_POWER_SCALE = 1.0 if bpy.app.version < (4, 0, 0) else 4.0 / math.pi
+from .. import blender_compat, color_adjustment, gaussian_mesh, mesh_fast_read, modifier_checks, native
+from ..material_reader import input_value
+from .materials import MaterialTable
 
 
 def _light_kwargs(light, matrix):
@@ -26,7 +20,7 @@ def _light_kwargs(light, matrix):
     if light.type == "AREA":
         shape = "AREA_DISK" if light.shape in ("DISK", "ELLIPSE") else "AREA_RECTANGLE"
         size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
-        return dict(common, type=shape, power=float(light.energy) * AREA_POWER_SCALE,
+        return dict(common, type=shape, power=float(light.energy) * blender_compat.AREA_LIGHT_POWER_SCALE,
                     size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
     return dict(common, type="POINT")
 
@@ -163,7 +157,9 @@ class SceneSync:
         the one it was evaluated in, None for an instance; `reuse`: an earlier _CloudSource whose arrays may be
         overwritten; `previous`: the object's last _CloudSource."""
         settings = obj.raysplats
-        key = (settings.vertices_per_polygon, settings.radius, settings.sh_degree)
+        # (The colour adjustments are part of the key: changing them re-recovers the object with the new colours.)
+        key = (settings.vertices_per_polygon, settings.radius, settings.sh_degree,
+               color_adjustment.adjustment_key(settings))
         arrays, attributes = (reuse.arrays, reuse.attributes) if reuse else (None, None)
 
         def read(mesh):
@@ -178,7 +174,7 @@ class SceneSync:
             finally:
                 obj.to_mesh_clear()
         # (An instance's object is not necessarily the evaluated object of its datablock: read its own mesh.)
-        return read(obj.data if depsgraph is None else gaussian_mesh.evaluated_mesh(obj, depsgraph))
+        return read(obj.data if depsgraph is None else mesh_fast_read.evaluated_mesh(obj, depsgraph))
 
     def _recover(self, obj, source, faces=None):
         """Gaussians of an evaluated Gaussian object (all, or `faces`), in its own frame."""
@@ -236,6 +232,8 @@ class SceneSync:
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
+                for message in modifier_checks.fidelity_warnings(obj.original, for_render=not self.interactive):
+                    self._warn_once(message)
                 source = self._read(obj, None if instance.is_instance else depsgraph)
                 cloud = self._recover(obj, source)
                 if len(cloud["opacities"]):
@@ -302,19 +300,29 @@ class SceneSync:
     _REBUILD_TYPES = (bpy.types.Material, bpy.types.World, bpy.types.Light, bpy.types.Image, bpy.types.NodeTree,
                       bpy.types.Collection)
 
+    def changes_scene(self, update):
+        """True when a depsgraph update (an item of depsgraph.updates) changes the native scene, so that update()
+        would apply it: the viewport stops its render only for these (the core refuses changes during a render)."""
+        data = update.id
+        if isinstance(data, self._REBUILD_TYPES):
+            return True
+        if not isinstance(data, bpy.types.Object):
+            return False  # the scene, meshes (their objects report the change), ...
+        if not (update.is_updated_geometry or update.is_updated_transform):
+            return False  # selection, active object
+        return data.type != "CAMERA"  # the view's camera is not part of the scene
+
     def update(self, depsgraph):
         """Applies the depsgraph's changes in place. Returns "none", "updated" or "rebuild" (the caller makes a new
         SceneSync: objects were added or removed, or materials, lights or the world changed)."""
         result = "none"
         self.faces_recovered = 0
         for update in depsgraph.updates:
+            if not self.changes_scene(update):
+                continue
             data = update.id
             if isinstance(data, self._REBUILD_TYPES):
                 return "rebuild"
-            if not isinstance(data, bpy.types.Object):
-                continue  # the scene, meshes (their objects report the change), ...
-            if not (update.is_updated_geometry or update.is_updated_transform):
-                continue  # selection, active object
             uid = data.original.as_pointer()
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.clouds:
@@ -335,7 +343,7 @@ class SceneSync:
                 self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
                                               uvs=uvs)
                 result = "updated"
-            elif data.type != "CAMERA":
+            else:
                 return "rebuild"  # a new object, an instancer, a light
         return result
 
@@ -347,7 +355,8 @@ def build_render_scene(depsgraph, warn=None):
 
 
 def camera_settings(scene, camera_object, width, height):
-    """The native camera description of a Blender camera object."""
+    """The native camera description of a Blender camera object: a dict of the core's camera parameters
+    (_native.camera_parameters(); Blender's names and units, angles in radians)."""
     cam = camera_object.data
     camera = {
         "matrix": np.array(camera_object.matrix_world.normalized(), dtype=np.float32),
@@ -355,21 +364,21 @@ def camera_settings(scene, camera_object, width, height):
         "sensor_fit": cam.sensor_fit, "shift_x": cam.shift_x, "shift_y": cam.shift_y,
         "clip_start": cam.clip_start, "clip_end": cam.clip_end, "ortho_scale": cam.ortho_scale,
     }
-    if cam.type == "ORTHO":
-        camera["type"] = "ORTHO"
-    elif cam.type == "PANO":
+    if cam.type == "PANO":
         # Blender 4 keeps panoramic settings on the camera; Blender 3 in Cycles' properties (ours here).
-        source = cam if hasattr(cam, "panorama_type") else cam.raysplats
+        source = cam if blender_compat.CAMERA_HAS_PANORAMA_SETTINGS else cam.raysplats
         panorama = source.panorama_type
-        if panorama not in ("EQUIRECTANGULAR", "FISHEYE_EQUIDISTANT", "FISHEYE_EQUISOLID"):
+        # The core spells its camera models as Blender spells camera and panorama types.
+        supported = [model["name"] for model in native.core().camera_models()]
+        if panorama not in supported:
             raise ValueError(f"Camera '{camera_object.name}': panorama type {panorama} is not supported "
-                             "(equirectangular and fisheye are)")
+                             f"(the renderer's camera models: {', '.join(supported)})")
         camera["type"] = panorama
         for key in ("fisheye_fov", "fisheye_lens", "latitude_min", "latitude_max", "longitude_min",
                     "longitude_max"):
             camera[key] = float(getattr(source, key))
     else:
-        camera["type"] = "PERSP"
+        camera["type"] = cam.type  # PERSP or ORTHO
     return camera
 
 
@@ -382,6 +391,7 @@ def render_settings(scene, width, height, samples, seed_offset=0):
         "meshes_shadow_gaussians": settings.meshes_shadow_gaussians,
         "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,
         "transparent_background": bool(scene.render.film_transparent),
+        "pixel_filter": settings.pixel_filter, "filter_width": settings.filter_width,
     }
 
 

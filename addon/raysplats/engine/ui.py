@@ -1,12 +1,15 @@
 # Render Properties panels of the RaySplats engine, and the Blender panels it is compatible with.
 import bpy
 
+from .. import blender_compat
+from . import color_management, passes
+
 ENGINE = "RAYSPLATS"
 
 # Blender's own panels that work unchanged with this engine (dimensions, output, camera, light, material).
 _COMPATIBLE_PANELS = (
     "RENDER_PT_format", "RENDER_PT_frame_range", "RENDER_PT_output", "RENDER_PT_color_management",
-    "RENDER_PT_film", "DATA_PT_camera", "DATA_PT_lens", "DATA_PT_camera_display", "DATA_PT_light",
+    "DATA_PT_camera", "DATA_PT_lens", "DATA_PT_camera_display", "DATA_PT_light",
     "DATA_PT_EEVEE_light", "DATA_PT_area", "DATA_PT_spot", "EEVEE_MATERIAL_PT_surface", "MATERIAL_PT_preview",
     "EEVEE_WORLD_PT_surface", "WORLD_PT_context_world", "VIEWLAYER_PT_layer_passes", "RENDER_PT_format_presets",
 )
@@ -48,6 +51,23 @@ class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
         layout.prop(settings, "meshes_shadow_gaussians")
 
 
+class RAYSPLATS_RENDER_PT_film(RaySplatsPanel, bpy.types.Panel):
+    """Film: transparent background and the pixel filter (EEVEE's Film panel has settings this engine does not
+    use, so it has its own), and the note on the view transform."""
+    bl_label = "Film"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        scene = context.scene
+        layout.prop(scene.render, "film_transparent", text="Transparent")
+        column = layout.column(align=True)
+        column.prop(scene.raysplats, "pixel_filter")
+        column.prop(scene.raysplats, "filter_width")
+        color_management.draw_note(layout, scene)
+
+
 class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
     bl_label = "Light Paths"
 
@@ -67,7 +87,7 @@ class RAYSPLATS_CAMERA_PT_panorama(RaySplatsPanel, bpy.types.Panel):
     def poll(cls, context):
         camera = context.camera
         return (super().poll(context) and camera is not None and camera.type == "PANO"
-                and not hasattr(camera, "panorama_type"))  # Blender 4 shows its own settings
+                and not blender_compat.CAMERA_HAS_PANORAMA_SETTINGS)  # Blender 4 shows its own settings
 
     def draw(self, context):
         layout = self.layout
@@ -83,11 +103,25 @@ class RAYSPLATS_CAMERA_PT_panorama(RaySplatsPanel, bpy.types.Panel):
                 layout.prop(settings, "fisheye_lens")
 
 
-_CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_light_paths,
-            RAYSPLATS_CAMERA_PT_panorama)
+class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
+    """View Layer > Passes: a check box per film channel of the core (engine/passes.py)."""
+    bl_label = "Data"
+    bl_context = "view_layer"
+    bl_parent_id = "VIEWLAYER_PT_layer_passes"
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        self.layout.use_property_decorate = False
+        passes.draw_pass_toggles(self.layout, context.view_layer)
+
+
+_CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_film,
+            RAYSPLATS_RENDER_PT_light_paths,
+            RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)
 
 
 def register():
+    color_management.register()
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     for name in _COMPATIBLE_PANELS:
@@ -103,3 +137,4 @@ def unregister():
             panel.COMPAT_ENGINES.discard(ENGINE)
     for cls in reversed(_CLASSES):
         bpy.utils.unregister_class(cls)
+    color_management.unregister()

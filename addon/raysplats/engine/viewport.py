@@ -1,28 +1,120 @@
-# Viewport (Rendered shading): the native scene is kept between redraws; the depsgraph's changes to Gaussian and
-# mesh objects are applied in place (sync.SceneSync.update: the renderer rebuilds only the Gaussian chunks or mesh
-# that changed, or only moves instances), anything else builds it again; each redraw adds one low-cost sample
-# (stochastic compositing, reduced resolution first) and the accumulated image is drawn with the gpu module, so
-# the first image comes quickly and refines while nothing changes.
+# Viewport (Rendered shading). The UI thread never waits on a sample: view_draw starts a native RenderJob (its own
+# thread) and returns; each redraw draws the newest image the job has (a snapshot after each sample pass, then its
+# result), and a timer tags a redraw when a newer one is ready. A view change (camera, size, settings) cancels the job
+# and starts another: first one sample at a quarter of the resolution (the first image comes quickly), then the
+# full resolution in sample passes. Edits to Gaussian and mesh objects are applied in place (sync.SceneSync.update:
+# the renderer rebuilds only the Gaussian chunks or mesh that changed, or only moves instances) once the running job
+# has stopped, since the core refuses scene changes during a render; anything else builds the scene again.
+import os
 import time
 
+import bpy
 import numpy as np
 
 from .. import native
 from . import sync
 
+POLL_SECONDS = 0.05  # how often the timer looks for a newer image (a flag and a counter read; no copies)
+PREVIEW_DIVISOR = 4  # the first image of a view: one sample at a quarter of the resolution
+# The viewport render leaves one core to Blender's UI thread (and its drawing, in software GL on machines without a
+# GPU), which would otherwise compete with every render thread, and its own thread runs below normal priority.
+# blender_gui.viewport_rendered under Xvfb on 2 shared cores (load ~7 from other work), biker_v4: all threads at
+# normal priority let the UI timer tick 10 times in 1.8 s of refining (longest gap 397 ms, against 216 ms for a
+# plain redraw); one thread below normal, 129 ticks in 3.3 s (longest gap 274 ms, plain redraw 245 ms).
+RENDER_THREADS = max(1, (os.cpu_count() or 2) - 1)
 
-# Diagnostics: the last viewport image drawn (samples accumulated, splats), for status displays and tests.
-last_draw = {"samples": 0, "splats": 0, "draws": 0}
+# Diagnostics: the newest viewport image (its samples, splats; draws: images drawn so far, time: when the last came)
+# and the longest time view_draw or view_update kept the UI thread (longest_ui_call, seconds; tests reset it), for
+# status displays and tests.
+last_draw = {"samples": 0, "splats": 0, "draws": 0, "longest_ui_call": 0.0}
+
+
+def _timed(entry_point):
+    """Records the UI-thread time of an entry point in last_draw["longest_ui_call"]."""
+    def timed(engine, context, depsgraph):
+        start = time.perf_counter()
+        try:
+            entry_point(engine, context, depsgraph)
+        finally:
+            last_draw["longest_ui_call"] = max(last_draw["longest_ui_call"], time.perf_counter() - start)
+    timed.__doc__ = entry_point.__doc__
+    return timed
 
 
 class ViewportState:
     def __init__(self):
         self.sync = None
         self.dirty = True
-        self.key = None
-        self.accumulated = None
-        self.samples = 0
+        self.key = None           # what `job` renders: image size, view and settings; None: start again
+        self.job = None           # the newest render; older ones are cancelled and end in `retiring`
+        self.job_is_preview = False
+        self.retiring = []
+        self.shown_samples = 0    # samples of the image drawn from `job` (0: none yet)
+        self.samples = 0          # samples of the image on screen
         self.texture = None
+        self.polling = False
+
+
+def _jobs(state):
+    return ([state.job] if state.job is not None else []) + state.retiring
+
+
+def _stop_jobs(state):
+    """Cancels every job and waits for them (each ends within one tile's sample pass): the scene can be changed."""
+    for job in _jobs(state):
+        job.cancel()
+    for job in _jobs(state):
+        job.wait(1e9)
+    state.job, state.retiring, state.key = None, [], None
+
+
+def _retire(state):
+    if state.job is not None:
+        state.job.cancel()
+        state.retiring.append(state.job)
+        state.job = None
+    # Dropped once ended: dropping a running job would join its thread here, on the UI thread.
+    state.retiring = [job for job in state.retiring if not job.wait(0.0)]
+
+
+def _has_newer_image(state):
+    job = state.job
+    return job is not None and (job.snapshot_samples > state.shown_samples or job.wait(0.0))
+
+
+def _engine_exists(engine):
+    """False once Blender has freed the engine (the view left Rendered shading): its Python object then raises
+    ReferenceError on any attribute."""
+    try:
+        engine.as_pointer()
+        return True
+    except ReferenceError:
+        return False
+
+
+def _poll(engine, state):
+    """Timer: tags the rendered 3D views for a redraw when the job has a newer image; stops with the job, and
+    cancels it when the engine has been freed."""
+    if not _engine_exists(engine):
+        for job in _jobs(state):
+            job.cancel()
+        state.polling = False
+        return None
+    if state.job is None:
+        state.polling = False
+        return None
+    if _has_newer_image(state):
+        for window in bpy.context.window_manager.windows:
+            for area in window.screen.areas:
+                if area.type == "VIEW_3D" and area.spaces.active.shading.type == "RENDERED":
+                    area.tag_redraw()
+    return POLL_SECONDS
+
+
+def _start_polling(engine, state):
+    if not state.polling:
+        state.polling = True
+        bpy.app.timers.register(lambda: _poll(engine, state), first_interval=POLL_SECONDS)
 
 
 def view_camera(context, width, height):
@@ -48,11 +140,15 @@ def view_camera(context, width, height):
     return camera
 
 
+@_timed
 def view_update(engine, context, depsgraph):
     state = engine.viewport_state
     if state.sync is None or state.dirty:
         state.dirty = True
         return
+    if not any(state.sync.changes_scene(update) for update in depsgraph.updates):
+        return  # selection and the like: the render goes on
+    _stop_jobs(state)  # the core refuses scene changes while a job renders the scene
     try:
         change = state.sync.update(depsgraph)
     except Exception as error:  # a bad edit (NaN vertices, ...): build again, which reports it
@@ -61,10 +157,36 @@ def view_update(engine, context, depsgraph):
     if change == "rebuild":
         state.dirty = True
     elif change == "updated":
-        state.samples, state.accumulated = 0, None
         last_draw["updates"] = last_draw.get("updates", 0) + 1
 
 
+def _start_job(engine, state, scene, context, width, height, samples, seed_offset=0):
+    settings = sync.render_settings(scene, width, height, samples, seed_offset=seed_offset)
+    settings["compositing"] = "STOCHASTIC"  # no sorting: the cheapest sample, refined by the passes
+    state.job = native.core().RenderJob(state.sync.render_scene, view_camera(context, width, height), settings,
+                                        max_threads=RENDER_THREADS, below_normal_priority=True)
+    state.shown_samples = 0
+    _start_polling(engine, state)
+
+
+def _take_image(state):
+    """The job's newest Combined film (its result once it has ended, else the newest pass's snapshot, rows top to
+    bottom) and its samples; None when there is nothing newer than what is drawn."""
+    job = state.job
+    if job.wait(0.0):
+        state.job = None  # (before result(), which raises the render's error: reported once, not every redraw)
+        film = job.result()
+    elif job.snapshot_samples > state.shown_samples:
+        film = job.snapshot(["rgba"])  # the one channel drawn: a third of a whole film's copy
+    else:
+        return None
+    state.shown_samples = film["samples"]
+    if film["samples"] == 0:
+        return None  # cancelled before its first pass
+    return film["rgba"], film["samples"]
+
+
+@_timed
 def view_draw(engine, context, depsgraph):
     import gpu
     from gpu_extras.presets import draw_texture_2d
@@ -72,46 +194,46 @@ def view_draw(engine, context, depsgraph):
     state = engine.viewport_state
     scene = depsgraph.scene
     region = context.region
-    # Start at a quarter of the resolution, full resolution once the view holds still.
-    divisor = 4 if state.samples == 0 else 1
-    width, height = max(1, region.width // divisor), max(1, region.height // divisor)
     if state.dirty:
-        state.sync = sync.SceneSync(depsgraph, interactive=True)
-        state.sync.render_scene.build(scene.raysplats.gaussian_mode)
+        _stop_jobs(state)
+        state.sync = sync.SceneSync(depsgraph, interactive=True)  # the job builds its BVH on its own thread
         state.dirty = False
-        state.samples, state.accumulated = 0, None
         last_draw["rebuilds"] = last_draw.get("rebuilds", 0) + 1
+    width, height = region.width, region.height
     camera = view_camera(context, width, height)
+    settings = sync.render_settings(scene, width, height, scene.raysplats.viewport_samples)
     key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)), camera.get("lens"),
-           camera.get("ortho_scale"))
+           camera.get("ortho_scale"), tuple(sorted(settings.items())))
     if key != state.key:
-        state.key, state.samples, state.accumulated = key, 0, None
+        _retire(state)
+        # The old image stays on screen until the new one comes, counted as no samples of the new view.
+        state.key, state.job_is_preview, state.samples = key, True, 0
+        preview_width, preview_height = max(1, width // PREVIEW_DIVISOR), max(1, height // PREVIEW_DIVISOR)
+        _start_job(engine, state, scene, context, preview_width, preview_height, 1)
+    elif state.retiring:
+        _retire(state)
 
-    target = scene.raysplats.viewport_samples
-    if state.samples < target:
-        settings = sync.render_settings(scene, width, height, 1, seed_offset=state.samples)
-        settings["compositing"] = "STOCHASTIC"
-        film = native.core().RenderJob(state.sync.render_scene, camera, settings).result()
-        rgba = film["rgba"][::-1]
-        if state.accumulated is None or state.accumulated.shape != rgba.shape:
-            state.accumulated = rgba.astype(np.float32)
-        else:
-            state.accumulated += (rgba - state.accumulated) / (state.samples + 1)
-        state.samples += 1
-        h, w = state.accumulated.shape[:2]
-        buffer = gpu.types.Buffer("FLOAT", w * h * 4, state.accumulated.ravel())
-        state.texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buffer)
+    image = _take_image(state) if state.job is not None else None
+    if image is not None:
+        rgba, samples = image
+        h, w = rgba.shape[:2]
+        buffer = gpu.types.Buffer("FLOAT", w * h * 4, rgba.ravel())
+        # 32-bit floats as the film has them (RGBA16F made Blender convert every value on the UI thread).
+        state.texture = gpu.types.GPUTexture((w, h), format="RGBA32F", data=buffer)
+        state.samples = samples
         stats = state.sync.stats
         engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | "
-                                f"Sample {state.samples}/{target}")
-        if state.samples < target:
-            engine.tag_redraw()
+                                f"Sample {state.samples}/{scene.raysplats.viewport_samples}")
+        last_draw.update(samples=samples, splats=stats.splats, draws=last_draw["draws"] + 1, time=time.perf_counter())
+    if state.job is None and state.job_is_preview:
+        # The preview has ended: the full image, in sample passes (seeds after the preview's).
+        state.job_is_preview = False
+        _start_job(engine, state, scene, context, width, height, scene.raysplats.viewport_samples, seed_offset=1)
     if state.texture is None:
         return
-    last_draw.update(samples=state.samples, splats=state.sync.stats.splats, draws=last_draw["draws"] + 1,
-                     time=time.perf_counter())
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
-    draw_texture_2d(state.texture, (0, 0), region.width, region.height)
+    # Film rows run top to bottom, texture rows bottom to top: drawn with a negative height, flipped for free.
+    draw_texture_2d(state.texture, (0, region.height), region.width, -region.height)
     engine.unbind_display_space_shader()
     gpu.state.blend_set("NONE")

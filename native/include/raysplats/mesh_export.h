@@ -2,12 +2,15 @@
 // PLY (binary, RGBA vertex colours) and glTF 2.0 (.gltf + .bin, or .glb; optionally Draco-compressed).
 //
 // A splat patch is the Gaussian's polygon (DESIGN §5, K rim vertices on the ellipse of Mahalanobis radius
-// rho) plus a centre vertex, fan-triangulated from the centre (K triangles, K + 1 vertices):
-//   centre:  position m,                             alpha a,               uv (0.5, 0.5)
-//   rim k:   m + rho (s1 cos θ_k a1 + s2 sin θ_k a2), alpha a·exp(-rho²/2),  uv 0.5 + 0.5 (cos θ_k, sin θ_k)
-// so linear interpolation of the vertex alpha approximates the falloff, and a renderer with an alpha
-// texture gets it exactly: at texture coordinate uv the Gaussian is a·exp(-|x|²/2), x = rho (2 uv - 1)
-// (x is the local polygon coordinate Blender's `gs_uv` map holds). Normal: a1 × a2 at every vertex.
+// rho_i) plus a centre vertex, fan-triangulated from the centre (K triangles, K + 1 vertices):
+//   centre:  position m,                               alpha a,                 uv (0.5, 0.5)
+//   rim k:   m + rho_i (s1 cos θ_k a1 + s2 sin θ_k a2), alpha a·exp(-rho_i²/2),  uv 0.5 + 0.5 (rho_i/rho)(cos θ_k, sin θ_k)
+// with rho_i = visible_polygon_radius(a, rho) = min(rho, sqrt(2 ln(255 a))) (polygon_bridge.h: the patch spans
+// where the Gaussian is visible, as the polygon its import made; a Gaussian with a < 1/255 gets a patch of zero
+// size). Linear interpolation of the vertex alpha approximates the falloff, and a renderer with one alpha texture
+// for all patches gets it exactly: at texture coordinate uv every Gaussian is a·exp(-|x|²/2), x = rho (2 uv - 1)
+// (x is the local polygon coordinate Blender's `gs_uv` map holds; the rim of a faint Gaussian lies inside the
+// circle of radius 0.5). Normal: a1 × a2 at every vertex.
 // Colour: the view-independent SH DC term, c = clamp(0.5 + SH_00 · f_dc, 0, 1) (display sRGB, DESIGN §4);
 // higher SH bands are not representable in these formats and are left out.
 //

@@ -22,4 +22,9 @@ std::array<float, 3> evaluate_sh(int degree, const float* coeffs, double x, doub
 // Bands 1..3 are rotated; band 0 is unchanged. In-place is allowed (in == out). Layout [k][rgb].
 void rotate_sh(int degree, const double* rotation_row_major, const float* in, float* out);
 
+// Reflection of SH coefficients across coordinate planes: with flip_x (y, z), writes the coefficients of
+// f'(d) = f(d with x (y, z) negated), i.e. negates every coefficient whose basis function is odd in that coordinate.
+// In place, layout [k][rgb]. A mirrored Gaussian's view-dependent colour is its original's reflected this way.
+void reflect_sh(int degree, bool flip_x, bool flip_y, bool flip_z, float* coeffs);
+
 }  // namespace raysplats

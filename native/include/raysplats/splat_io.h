@@ -3,7 +3,9 @@
 // (temporary file in the same folder, then rename), so a failed write never replaces a good file.
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "raysplats/gaussian_cloud.h"
 
@@ -11,17 +13,31 @@ namespace raysplats {
 
 enum class SplatFormat { Ply, Splat, Spz };
 
+// The splat formats the core reads and writes: the one list the add-on, its command line and the tools take
+// their format names, file extensions and import defaults from.
+struct SplatFormatInfo {
+    SplatFormat format;
+    const char* name;                     // "ply", "splat", "spz"
+    std::vector<const char*> extensions;  // lower case, with the dot; the first is the one written
+    const char* description;
+    // The up direction of the cloud the reader returns: "-Y" for every format, since the readers convert to the
+    // core's COLMAP convention (x right, y down, z forward; SPZ's RUB is rotated on reading and writing). Which
+    // way a scene is up is a property of the scene, not of its file format (DESIGN §4).
+    const char* up_axis;
+};
+const std::vector<SplatFormatInfo>& splat_formats();
+
 // Format from the file name's extension (.ply, .splat, .spz; case-insensitive); throws FileFormatError otherwise.
 SplatFormat splat_format_from_extension(const std::string& path);
 const char* splat_format_name(SplatFormat format);
 
 // Applied by every reader, after NaN/Inf repair: splats are taken in file order, those dropped (non-finite
-// position/scale/rotation, or opacity below min_opacity) are skipped, and the first max_count of the rest
-// are returned.
+// position/scale/rotation, or opacity below min_opacity) are skipped, and of the rest at most max_count are
+// returned: all when they are fewer, else a uniform random choice over the whole file (fixed seed, file order kept).
 struct ReadOptions {
     // Splats with opacity below this are not loaded (0 keeps all).
     float min_opacity = 0.0f;
-    // At most this many splats are loaded, the first ones in the file (0 = no limit).
+    // At most this many splats are loaded, chosen uniformly over the whole file (0 = no limit).
     std::size_t max_count = 0;
 };
 
@@ -35,9 +51,20 @@ GaussianCloud read_splat_file(const std::string& path, const ReadOptions& option
 GaussianCloud read_ply(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
 // antimatter15 .splat (32-byte records); SH degree 0.
 GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
-// Niantic SPZ versions 2 and 3 (gzip) and 4 (zstd streams). Coordinates are returned as stored in the file,
-// without the reference library's optional axis conversion (see spz_format.cpp for the reasoning).
+// Niantic SPZ versions 2 and 3 (gzip) and 4 (zstd streams). SPZ stores RUB (x right, y up, z back); the cloud
+// comes out in the core's RDF like every reader's: positions, rotations and SH rotated 180° about x.
 GaussianCloud read_spz(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
+
+// What a splat file's header says, read without decoding its data (a few bytes; SPZ 2/3: the first 16 bytes of its
+// gzip stream): for checking, before an import, that there is memory for it. Throws FileFormatError like the
+// readers for a file they would refuse at its header. `count` is the number of splats the file declares
+// (before any are dropped or filtered).
+struct SplatFileSummary {
+    SplatFormat format = SplatFormat::Ply;
+    std::uint64_t count = 0;
+    int sh_degree = 0;
+};
+SplatFileSummary probe_splat_file(const std::string& path);
 
 // Writes the format given by the extension. All writers throw InvalidArgument for an inconsistent cloud
 // (before touching any file) and FileFormatError naming the path when the file cannot be written.
@@ -50,7 +77,8 @@ void write_ply(const std::string& path, const GaussianCloud& cloud);
 // 32-byte records: position float3, scale float3 (linear), RGBA uint8 (colour from SH DC, alpha = opacity),
 // quaternion uint8x4 (w x y z, (q*128)+128). Higher SH bands are lost (the format has none).
 void write_dot_splat(const std::string& path, const GaussianCloud& cloud);
-// SPZ version 4 (zstd streams), as current Niantic tools write. Quantised: positions 24-bit fixed point
+// SPZ version 4 (zstd streams), as current Niantic tools write, in SPZ's RUB (rotated 180° about x from the
+// cloud's RDF). Quantised: positions 24-bit fixed point
 // (12 fractional bits, fewer only if the scene needs the range), opacity and colour 8 bits, log scale in
 // steps of 1/16 over [-10, 6), rotation 9-bit smallest three, higher SH bands 8 bits over [-1, 1).
 void write_spz(const std::string& path, const GaussianCloud& cloud);

@@ -1,7 +1,9 @@
 // Small fixed-size linear algebra in double for per-Gaussian numerics. Matrices are row-major 3x3 arrays.
+// (quaternion_to_rotation is generic: the renderer uses it in float.)
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace raysplats::la {
@@ -58,12 +60,18 @@ inline double determinant(const Mat3& a) {
            a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
 }
 
-// Rotation matrix of a unit quaternion (w, x, y, z).
+// Rotation matrix, row-major, of a unit quaternion (w, x, y, z) (reference 3DGS build_rotation), computed in T: the
+// renderer builds its Gaussians' axes in float (its images depend on that rounding), the polygon bridge in double.
+template <class T>
+inline std::array<T, 9> quaternion_to_rotation(T w, T x, T y, T z) {
+    return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+            2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+}
 inline Mat3 quaternion_to_matrix(double w, double x, double y, double z) {
     Mat3 r;
-    r.m[0] = 1 - 2 * (y * y + z * z), r.m[1] = 2 * (x * y - w * z), r.m[2] = 2 * (x * z + w * y);
-    r.m[3] = 2 * (x * y + w * z), r.m[4] = 1 - 2 * (x * x + z * z), r.m[5] = 2 * (y * z - w * x);
-    r.m[6] = 2 * (x * z - w * y), r.m[7] = 2 * (y * z + w * x), r.m[8] = 1 - 2 * (x * x + y * y);
+    const std::array<double, 9> m = quaternion_to_rotation(w, x, y, z);
+    std::copy(m.begin(), m.end(), r.m);
     return r;
 }
 

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <string>
 
+#include "core/color_math.h"
 #include "core/linear_algebra.h"
 #include "raysplats/errors.h"
 #include "raysplats/spherical_harmonics.h"
@@ -21,11 +22,9 @@ using la::Vec3;
 constexpr double kTwoPi = 6.283185307179586;
 constexpr std::size_t kGrain = 4096;
 
-// sRGB display value -> linear (IEC 61966-2-1), for Blender's linear colour attributes.
-float srgb_to_linear(float c) {
-    c = std::min(1.0f, std::max(0.0f, c));
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
+// Blender's linear colour attribute of a Gaussian's SH DC term: the display colour clamped to [0, 1] and decoded.
+// (std::max clamps a NaN coefficient to 0, where sh_dc_to_linear_unit of the mesh exporters keeps the NaN.)
+float corner_color(float f_dc) { return srgb_to_linear(std::min(1.0f, std::max(0.0f, float(sh_dc_to_display(f_dc))))); }
 
 Mat3 rotation_of(const float q[4]) {
     double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -127,7 +126,7 @@ bool recover_by_moments(const Vec3* v, int count, double rho, double thickness, 
     g.r.set_column(1, la::cross(n, a1));
     g.r.set_column(2, n);
 
-    // s = sqrt(2 λ) / rho, because (1/K) Σ cos²θ_k = 1/2 for every regular K-gon with K >= 3.
+    // s = sqrt(2 λ) / rho (the face's rho_i), because (1/K) Σ cos²θ_k = 1/2 for every regular K-gon with K >= 3.
     double s1 = std::sqrt(2 * l1) / rho, s2 = std::sqrt(2 * l2) / rho;
     bool ok = std::isfinite(s1) && s1 > kMinAbsoluteScale && s2 >= kMinRelativeScale * s1;
     if (!std::isfinite(s1)) s1 = kMinAbsoluteScale;
@@ -170,7 +169,17 @@ void transform_gaussian(const Mat3& a, const Vec3& t, bool linear_is_identity, F
     for (int k = 0; k < 3; ++k) g.s[k] = std::sqrt(std::max(0.0, values[k]));
 }
 
+// a / (1/255): something of the Gaussian is visible when it exceeds 1 (then its logarithm is positive).
+double visibility_ratio(float opacity) { return double(opacity) / kVisibleOpacity; }
+
 }  // namespace
+
+float visible_polygon_radius(float opacity, float rho) {
+    // a·exp(-r²/2) >= 1/255  <=>  r² <= 2 ln(a / (1/255)); nothing is visible when the logarithm is not positive.
+    const double ratio = visibility_ratio(opacity);
+    if (!(ratio > 1.0)) return 0.0f;
+    return float(std::min(double(rho), std::sqrt(2 * std::log(ratio))));
+}
 
 void PolygonSettings::validate() const {
     if (vertices_per_polygon < kMinPolygonVertices || vertices_per_polygon > kMaxPolygonVertices)
@@ -181,22 +190,25 @@ void PolygonSettings::validate() const {
 
 namespace {
 
-// rho·cos θ_k and rho·sin θ_k for every vertex of the polygon, computed once per call.
+// cos θ_k and sin θ_k for every vertex of the polygon, computed once per call.
 struct PolygonAngles {
     int count = 0;
-    double rho_cos[kMaxPolygonVertices];
-    double rho_sin[kMaxPolygonVertices];
-    explicit PolygonAngles(const PolygonSettings& settings) : count(settings.vertices_per_polygon) {
+    double cos[kMaxPolygonVertices];
+    double sin[kMaxPolygonVertices];
+    explicit PolygonAngles(int vertices_per_polygon) : count(vertices_per_polygon) {
         for (int k = 0; k < count; ++k) {
             const double theta = kTwoPi * k / count;
-            rho_cos[k] = settings.radius * std::cos(theta);
-            rho_sin[k] = settings.radius * std::sin(theta);
+            cos[k] = std::cos(theta);
+            sin[k] = std::sin(theta);
         }
     }
 };
 
+// The polygon of one Gaussian at radius rho (a float, as stored per face). Import, recovery's unedited-face check
+// and the mesh exporters all come here, so that the same Gaussian and rho give the same float vertices bit for bit
+// (rho·cos θ_k in double, as the angle tables with rho folded in did before per-face radii: old files still match).
 void polygon_of_gaussian(const float center[3], const float rotation_wxyz[4], const float scales[3],
-                         const PolygonAngles& angles, float* out) {
+                         const PolygonAngles& angles, float rho, float* out) {
     const Mat3 r = rotation_of(rotation_wxyz);
     // The two largest axes span the polygon; ties keep the lower index so the choice is deterministic.
     int first = 0;
@@ -208,7 +220,7 @@ void polygon_of_gaussian(const float center[3], const float rotation_wxyz[4], co
     const Vec3 a1 = r.column(first) * double(scales[first]);
     const Vec3 a2 = r.column(second) * double(scales[second]);
     for (int k = 0; k < angles.count; ++k) {
-        const double c = angles.rho_cos[k], s = angles.rho_sin[k];
+        const double c = double(rho) * angles.cos[k], s = double(rho) * angles.sin[k];
         out[3 * k + 0] = float(center[0] + c * a1.x + s * a2.x);
         out[3 * k + 1] = float(center[1] + c * a1.y + s * a2.y);
         out[3 * k + 2] = float(center[2] + c * a1.z + s * a2.z);
@@ -219,67 +231,95 @@ void polygon_of_gaussian(const float center[3], const float rotation_wxyz[4], co
 void gaussian_polygon(const float center[3], const float rotation_wxyz[4], const float scales[3],
                       const PolygonSettings& settings, float* out) {
     settings.validate();
-    polygon_of_gaussian(center, rotation_wxyz, scales, PolygonAngles(settings), out);
+    polygon_of_gaussian(center, rotation_wxyz, scales, PolygonAngles(settings.vertices_per_polygon), settings.radius,
+                        out);
 }
 
 void gaussian_polygons(const GaussianCloud& cloud, std::size_t begin, std::size_t end, const PolygonSettings& settings,
-                       float* out, std::size_t stride) {
+                       float* out, std::size_t stride, const float* polygon_radius) {
     settings.validate();
     if (stride < 3 * std::size_t(settings.vertices_per_polygon) || end > cloud.size() || begin > end)
         throw InvalidArgument("gaussian_polygons: bad range or stride");
-    const PolygonAngles angles(settings);
-    for (std::size_t i = begin; i < end; ++i)
-        polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles,
+    const PolygonAngles angles(settings.vertices_per_polygon);
+    for (std::size_t i = begin; i < end; ++i) {
+        const float rho = polygon_radius ? polygon_radius[i] : settings.radius;
+        if (!(rho >= 0.0f) || !std::isfinite(rho))
+            throw InvalidArgument("polygon radius of Gaussian " + std::to_string(i) +
+                                  " must be a non-negative number, got " + std::to_string(rho));
+        polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles, rho,
                             out + (i - begin) * stride);
+    }
 }
 
 SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSettings& settings) {
     settings.validate();
     cloud.check_consistent();
     const std::size_t n = cloud.size();
+    // The Gaussians with something visible (rho_i > 0) get a face each.
+    std::vector<std::uint32_t> gaussian_of_face;
+    gaussian_of_face.reserve(n);
+    for (std::size_t i = 0; i < n; ++i)
+        if (visibility_ratio(cloud.opacities[i]) > 1.0) gaussian_of_face.push_back(std::uint32_t(i));
+    const std::size_t nf = gaussian_of_face.size();
+
     const int kc = settings.vertices_per_polygon;
-    const std::size_t corners = n * kc;
+    const std::size_t corners = nf * kc;
     if (corners > std::size_t(INT32_MAX))
-        throw InvalidArgument(std::to_string(n) + " Gaussians with K = " + std::to_string(kc) +
+        throw InvalidArgument(std::to_string(nf) + " Gaussians with K = " + std::to_string(kc) +
                               " need more polygon corners than a Blender mesh can index");
     const int coeffs = cloud.coeffs_per_channel();
+    const std::size_t sh_per_gaussian = std::size_t(coeffs) * 3;
     SplatPolygons out;
+    out.invisible_skipped = n - nf;
+    out.sh_degree = cloud.sh_degree;
     out.vertex_positions.resize(3 * corners);
     out.corner_vertices.resize(corners);
-    out.face_corner_start.resize(n);
-    out.face_corner_count.assign(n, kc);
+    out.face_corner_start.resize(nf);
+    out.face_corner_count.assign(nf, kc);
     out.edge_vertices.resize(2 * corners);
     out.corner_edges.resize(corners);
-    out.thickness.resize(n);
-    out.sh_local.resize(cloud.sh.size());
+    out.thickness.resize(nf);
+    out.sh_local.resize(nf * sh_per_gaussian);
     out.corner_colors.resize(4 * corners);
     out.corner_uvs.resize(2 * corners);
+    out.polygon_radius.resize(nf);
+    out.opacity.resize(nf);
+    out.rest_centers.resize(3 * nf);
+    out.rest_rotations.resize(4 * nf);
+    out.rest_scales.resize(3 * nf);
 
-    const PolygonAngles angles(settings);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
+    const PolygonAngles angles(kc);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
         Vec3 verts[kMaxPolygonVertices];
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-            const std::int32_t base = std::int32_t(i * kc);
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+            const std::size_t i = gaussian_of_face[f];
+            const float rho = visible_polygon_radius(cloud.opacities[i], settings.radius);
+            const std::int32_t base = std::int32_t(f * kc);
             float* pos = &out.vertex_positions[3 * std::size_t(base)];
-            polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles, pos);
-            out.face_corner_start[i] = base;
+            polygon_of_gaussian(&cloud.positions[3 * i], &cloud.rotations[4 * i], &cloud.scales[3 * i], angles, rho, pos);
+            out.face_corner_start[f] = base;
             for (int k = 0; k < kc; ++k) {
                 const std::size_t c = std::size_t(base) + k;
                 out.corner_vertices[c] = std::int32_t(c);
                 out.edge_vertices[2 * c] = std::int32_t(c);
                 out.edge_vertices[2 * c + 1] = base + (k + 1) % kc;
                 out.corner_edges[c] = std::int32_t(c);
-                out.corner_uvs[2 * c] = float(angles.rho_cos[k]);
-                out.corner_uvs[2 * c + 1] = float(angles.rho_sin[k]);
+                out.corner_uvs[2 * c] = float(double(rho) * angles.cos[k]);
+                out.corner_uvs[2 * c + 1] = float(double(rho) * angles.sin[k]);
             }
             const float* s = &cloud.scales[3 * i];
             float sorted[3] = {s[0], s[1], s[2]};
             std::sort(sorted, sorted + 3, [](float a, float b) { return a > b; });
             const double plane = std::sqrt(double(sorted[0]) * sorted[1]);
-            out.thickness[i] = plane > 0 ? float(sorted[2] / plane) : 0.0f;
+            out.thickness[f] = plane > 0 ? float(sorted[2] / plane) : 0.0f;
+            out.polygon_radius[f] = rho;
+            out.opacity[f] = cloud.opacities[i];
+            std::memcpy(&out.rest_centers[3 * f], &cloud.positions[3 * i], 3 * sizeof(float));
+            std::memcpy(&out.rest_rotations[4 * f], &cloud.rotations[4 * i], 4 * sizeof(float));
+            std::memcpy(&out.rest_scales[3 * f], &cloud.scales[3 * i], 3 * sizeof(float));
 
-            const float* sh = &cloud.sh[std::size_t(i) * coeffs * 3];
-            float* local = &out.sh_local[std::size_t(i) * coeffs * 3];
+            const float* sh = &cloud.sh[i * sh_per_gaussian];
+            float* local = &out.sh_local[f * sh_per_gaussian];
             if (cloud.sh_degree > 0) {
                 Vec3 center;
                 for (int k = 0; k < kc; ++k) {
@@ -291,8 +331,7 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
             } else {
                 std::memcpy(local, sh, sizeof(float) * 3);
             }
-            const float rgba[4] = {srgb_to_linear(float(0.5 + kShC0 * sh[0])), srgb_to_linear(float(0.5 + kShC0 * sh[1])),
-                                   srgb_to_linear(float(0.5 + kShC0 * sh[2])), cloud.opacities[i]};
+            const float rgba[4] = {corner_color(sh[0]), corner_color(sh[1]), corner_color(sh[2]), cloud.opacities[i]};
             for (int k = 0; k < kc; ++k) std::memcpy(&out.corner_colors[4 * (std::size_t(base) + k)], rgba, sizeof(rgba));
         }
     });
@@ -309,6 +348,19 @@ PolygonMeshView mesh_view(const SplatPolygons& p) {
     v.face_corner_count = p.face_corner_count.data();
     v.face_count = p.face_corner_start.size();
     return v;
+}
+
+SplatFaceAttributesView attributes_view(const SplatPolygons& p) {
+    SplatFaceAttributesView a;
+    a.opacity = p.opacity.data();
+    a.thickness = p.thickness.data();
+    a.polygon_radius = p.polygon_radius.data();
+    a.sh_degree = p.sh_degree;
+    a.sh_local = p.sh_local.data();
+    a.rest_centers = p.rest_centers.data();
+    a.rest_rotations = p.rest_rotations.data();
+    a.rest_scales = p.rest_scales.data();
+    return a;
 }
 
 GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const SplatFaceAttributesView& attr,
@@ -334,22 +386,22 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
     const Vec3 t(mo[3], mo[7], mo[11]);
     bool identity = true;
     for (int i = 0; i < 9; ++i) identity = identity && a.m[i] == Mat3().m[i];
+    const bool reflects = la::determinant(a) < 0.0;
     // Reflections reverse the winding; the frame and normals below are taken in output space, where the
     // reversed winding is exactly what keeps the recovered rotation proper.
 
     const int degree = attr.sh_degree;
     const int coeffs = sh_coeff_count(degree);
     const int k_rest = options.polygon.vertices_per_polygon;
-    const double rho = options.polygon.radius;
 
-    const PolygonAngles angles(options.polygon);
+    const PolygonAngles angles(k_rest);
     GaussianCloud cloud;
     cloud.resize(nf, degree);
     std::vector<unsigned char> keep(nf, 1);
-    std::atomic<std::size_t> unedited{0}, recovered{0}, added{0}, degenerate{0}, dropped{0};
+    std::atomic<std::size_t> unedited{0}, recovered{0}, added{0}, degenerate{0}, dropped{0}, invalid_rest{0};
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
-        std::size_t n_unedited = 0, n_recovered = 0, n_added = 0, n_degenerate = 0, n_dropped = 0;
+        std::size_t n_unedited = 0, n_recovered = 0, n_added = 0, n_degenerate = 0, n_dropped = 0, n_invalid_rest = 0;
         Vec3 local[kMaxPolygonVertices > 256 ? kMaxPolygonVertices : 256];
         float rest_polygon[3 * kMaxPolygonVertices];
         std::vector<Vec3> big;  // faces with more than 256 corners (user-made n-gons)
@@ -385,11 +437,25 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             // Blender gives new faces) mark a face the user added.
             const bool is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
             const double thickness = (attr.thickness && !is_added) ? attr.thickness[f] : 0.0;
+            // The face's own rho_i (DESIGN §5); the object's rho where the face has none (0: added by the user).
+            float rho = options.polygon.radius;
+            if (attr.polygon_radius && attr.polygon_radius[f] > 0.0f && std::isfinite(attr.polygon_radius[f]))
+                rho = attr.polygon_radius[f];
 
             FaceGaussian g;
             bool exact_rest = false;
-            if (rest_q && rest_s && !is_added && count == k_rest && attr.rest_centers) {
-                polygon_of_gaussian(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], angles, rest_polygon);
+            // A rest rotation that is no rotation must not be passed through: rotation_of() takes it as the
+            // identity, so a face shaped like the identity's polygon would match and export the NaN unchanged.
+            bool usable_rest_q = false;
+            if (rest_q) {
+                const double n2 = double(rest_q[0]) * rest_q[0] + double(rest_q[1]) * rest_q[1] +
+                                  double(rest_q[2]) * rest_q[2] + double(rest_q[3]) * rest_q[3];
+                usable_rest_q = std::isfinite(n2) && n2 > 0;
+                if (!usable_rest_q && !is_added) ++n_invalid_rest;
+            }
+            if (usable_rest_q && rest_s && !is_added && count == k_rest && attr.rest_centers) {
+                polygon_of_gaussian(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], angles, rho,
+                                    rest_polygon);
                 exact_rest = true;
                 for (int k = 0; k < count && exact_rest; ++k) {
                     const float* p = &mesh.vertex_positions[3 * std::size_t(mesh.corner_vertices[start + k])];
@@ -443,7 +509,18 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
                         center = center + v[k];
                     }
                     const Mat3 frame = polygon_frame(v, count, center * (1.0 / count));
-                    rotate_sh(degree, frame.m, in_sh, out_sh);
+                    // polygon_frame() is a proper frame; a reflected face's true frame is improper. A face whose
+                    // corners a reflection reversed (first corner kept) has frame = true frame · diag(1, -1, 1); a
+                    // reflection in mesh_to_output, which keeps the corner order, true frame · diag(1, 1, -1).
+                    const bool flip_y = attr.reflected && attr.reflected[f] != 0.0f;
+                    if (flip_y || reflects) {
+                        float reflected_sh[3 * 16];
+                        std::memcpy(reflected_sh, in_sh, sizeof(float) * 3 * std::size_t(coeffs));
+                        reflect_sh(degree, false, flip_y, reflects, reflected_sh);
+                        rotate_sh(degree, frame.m, reflected_sh, out_sh);
+                    } else {
+                        rotate_sh(degree, frame.m, in_sh, out_sh);
+                    }
                 } else {
                     std::memcpy(out_sh, in_sh, 3 * sizeof(float));
                 }
@@ -452,7 +529,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             }
         }
         unedited += n_unedited, recovered += n_recovered, added += n_added, degenerate += n_degenerate,
-            dropped += n_dropped;
+            dropped += n_dropped, invalid_rest += n_invalid_rest;
     });
 
     if (dropped > 0) {  // compact: dropped faces are left out of the output
@@ -473,6 +550,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
     if (stats_out) {
         stats_out->unedited = unedited, stats_out->recovered = recovered, stats_out->added = added;
         stats_out->degenerate = degenerate, stats_out->dropped = dropped;
+        stats_out->invalid_rest_rotation = invalid_rest;
     }
     return cloud;
 }
@@ -523,6 +601,24 @@ std::vector<std::uint32_t> rows_that_differ(const float* previous, const float* 
             differs[r] = std::memcmp(&previous[r * width], &current[r * width], width * sizeof(float)) != 0;
     });
     return indices_of_set_flags(differs);
+}
+
+std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const float* corner_uvs) {
+    std::vector<float> reversed(mesh.face_count, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.face_count, kGrain), [&](const auto& range) {
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+            const std::int64_t start = mesh.face_corner_start[f], count = mesh.face_corner_count[f];
+            if (count < 3 || start < 0 || std::size_t(start + count) > mesh.corner_count) continue;
+            double twice_area = 0.0;  // shoelace
+            for (std::int64_t k = 0; k < count; ++k) {
+                const float* p = &corner_uvs[2 * std::size_t(start + k)];
+                const float* q = &corner_uvs[2 * std::size_t(start + (k + 1) % count)];
+                twice_area += double(p[0]) * q[1] - double(q[0]) * p[1];
+            }
+            reversed[f] = twice_area < 0.0 ? 1.0f : 0.0f;
+        }
+    });
+    return reversed;
 }
 
 }  // namespace raysplats

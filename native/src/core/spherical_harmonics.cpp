@@ -151,4 +151,20 @@ void rotate_sh(int degree, const double* r, const float* in, float* out) {
     }
 }
 
+void reflect_sh(int degree, bool flip_x, bool flip_y, bool flip_z, float* coeffs) {
+    check_degree(degree);
+    // Parity of each basis function of the reference basis (sh_basis above) in x, y and z: bit 0 odd in x, bit 1
+    // odd in y, bit 2 odd in z. Band 1: y, z, x; band 2: xy, yz, 2zz-xx-yy, xz, xx-yy; band 3: y(3xx-yy), xyz,
+    // y(4zz-xx-yy), z(2zz-3xx-3yy), x(4zz-xx-yy), z(xx-yy), x(xx-3yy).
+    static constexpr unsigned char kOdd[16] = {0, 2, 4, 1, 3, 6, 0, 5, 0, 2, 7, 2, 4, 1, 4, 1};
+    const unsigned flips = (flip_x ? 1u : 0u) | (flip_y ? 2u : 0u) | (flip_z ? 4u : 0u);
+    const int n = (degree + 1) * (degree + 1);
+    for (int k = 1; k < n; ++k) {
+        unsigned odd = kOdd[k] & flips;
+        const bool negate = ((odd & 1u) ^ ((odd >> 1) & 1u) ^ ((odd >> 2) & 1u)) != 0;
+        if (negate)
+            for (int c = 0; c < 3; ++c) coeffs[3 * k + c] = -coeffs[3 * k + c];
+    }
+}
+
 }  // namespace raysplats

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "core/color_math.h"
 #include "io/io_common.h"
 #include "raysplats/splat_io.h"
 
@@ -30,6 +31,59 @@ inline std::uint8_t to_byte(double x) {
     return static_cast<std::uint8_t>(std::lround(x));
 }
 
+// The reader's rotation of four stored bytes: (b - 128) / 128, then finalize_cloud's normalisation.
+inline bool decode_rotation(const int k[4], float q[4]) {
+    const float raw[4] = {float(k[0] / 128.0), float(k[1] / 128.0), float(k[2] / 128.0), float(k[3] / 128.0)};
+    return io::normalise_quaternion(raw, q);
+}
+
+// The four rotation bytes of a unit quaternion q (w x y z). Stored bytes hold q * |k| for some length |k| near
+// 128, rounded (writers differ: the antimatter15 converter truncates (q/|q|)*128+128), and the reader normalises,
+// so rounding q * 128 often gives a byte vector that reads back as another quaternion: 44 % of the records of a
+// real file changed on an untouched round trip. So: the bytes k whose reading is q exactly, trying q * 128
+// rounded first and then every length (k's largest component c = 128 .. 1, the others in proportion; the
+// original bytes are among these, since k / c = q / q_max exactly up to float rounding), preferring the length
+// nearest 128 (what normalising writers store). A quaternion no bytes read back as (an edited one) gets the
+// nearest bytes, q * 128 rounded.
+void encode_rotation(const float* q_in, std::uint8_t* out) {
+    // q as it is (normalising an already normalised float quaternion again may move it by an ulp, and then no
+    // bytes read back as it), unless it is not a usable rotation.
+    float q[4];
+    std::copy(q_in, q_in + 4, q);
+    float unit[4];
+    if (!io::normalise_quaternion(q_in, unit)) q[0] = 1.0f, q[1] = q[2] = q[3] = 0.0f;
+    else if (std::fabs(double(unit[0]) - q[0]) + std::fabs(double(unit[1]) - q[1]) + std::fabs(double(unit[2]) - q[2]) +
+                 std::fabs(double(unit[3]) - q[3]) > 1e-6)
+        std::copy(unit, unit + 4, q);  // not a unit quaternion (a cloud made by hand): its direction
+    int k[4];
+    float back[4];
+    for (int j = 0; j < 4; ++j) k[j] = int(to_byte(q[j] * 128.0 + 128.0)) - 128;
+    const bool exact_first = decode_rotation(k, back) && io::same_quaternion(back, q);
+    if (!exact_first) {
+        int largest = 0;
+        for (int j = 1; j < 4; ++j)
+            if (std::fabs(q[j]) > std::fabs(q[largest])) largest = j;
+        const double q_max = std::fabs(double(q[largest]));
+        double best_distance = 1e30;
+        for (int c = 128; c >= 1 && q_max > 0; --c) {
+            int trial[4];
+            bool fits = true;
+            for (int j = 0; j < 4; ++j) {
+                trial[j] = int(std::lround(double(q[j]) * c / q_max));
+                fits &= trial[j] >= -128 && trial[j] <= 127;
+            }
+            if (!fits || !decode_rotation(trial, back) || !io::same_quaternion(back, q)) continue;
+            const double length = std::sqrt(double(trial[0]) * trial[0] + double(trial[1]) * trial[1] +
+                                            double(trial[2]) * trial[2] + double(trial[3]) * trial[3]);
+            if (std::fabs(length - 128.0) < best_distance) {
+                best_distance = std::fabs(length - 128.0);
+                std::copy(trial, trial + 4, k);
+            }
+        }
+    }
+    for (int j = 0; j < 4; ++j) out[j] = std::uint8_t(k[j] + 128);
+}
+
 }  // namespace
 
 GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options, LoadReport* report) {
@@ -48,7 +102,7 @@ GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options
             const std::uint8_t* p = base + i * kRecord;
             for (int j = 0; j < 3; ++j) c.positions[3 * i + j] = load_f32le(p + 4 * j);
             for (int j = 0; j < 3; ++j) c.scales[3 * i + j] = load_f32le(p + 12 + 4 * j);
-            for (int j = 0; j < 3; ++j) c.sh[3 * i + j] = float((p[24 + j] / 255.0 - 0.5) / io::kShC0);
+            for (int j = 0; j < 3; ++j) c.sh[3 * i + j] = float(display_to_sh_dc(p[24 + j] / 255.0));
             c.opacities[i] = float(p[27] / 255.0);
             for (int j = 0; j < 4; ++j) c.rotations[4 * i + j] = float((p[28 + j] - 128.0) / 128.0);
         }
@@ -72,14 +126,9 @@ void write_dot_splat(const std::string& path, const GaussianCloud& cloud) {
                 for (int j = 0; j < 3; ++j) io::store_f32le(p + 4 * j, cloud.positions[3 * i + j]);
                 for (int j = 0; j < 3; ++j) io::store_f32le(p + 12 + 4 * j, cloud.scales[3 * i + j]);
                 // Rounded to the nearest step (the antimatter15 converter truncates; decoding is the same).
-                for (int j = 0; j < 3; ++j) p[24 + j] = to_byte((0.5 + io::kShC0 * cloud.sh[i * K3 + j]) * 255.0);
+                for (int j = 0; j < 3; ++j) p[24 + j] = to_byte(sh_dc_to_display(cloud.sh[i * K3 + j]) * 255.0);
                 p[27] = to_byte(double(cloud.opacities[i]) * 255.0);
-                const float* q = &cloud.rotations[4 * i];
-                const double nq = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
-                for (int j = 0; j < 4; ++j) {
-                    const double v = nq > 0.0 ? q[j] / nq : (j == 0 ? 1.0 : 0.0);
-                    p[28 + j] = to_byte(v * 128.0 + 128.0);
-                }
+                encode_rotation(&cloud.rotations[4 * i], p + 28);
             }
         });
         out.write(buf.data(), (c1 - c0) * kRecord);

@@ -279,7 +279,7 @@ void add_gaussians(tinygltf::Model& model, BufferLayout& layout, const GaussianC
     const int coeffs = cloud.coeffs_per_channel();
     float_attribute("COLOR_0", TINYGLTF_TYPE_VEC4, 4, [&cloud, coeffs](std::size_t i, float* o) {
         for (int c = 0; c < 3; ++c)
-            o[c] = srgb_to_linear_clamped(float(0.5 + kShC0 * cloud.sh[std::size_t(coeffs) * 3 * i + c]));
+            o[c] = sh_dc_to_linear_unit(cloud.sh[std::size_t(coeffs) * 3 * i + c]);
         o[3] = std::min(1.0f, std::max(0.0f, cloud.opacities[i]));
     });
     float_attribute(std::string(kSplatExtension) + ":ROTATION", TINYGLTF_TYPE_VEC4, 4, [&cloud](std::size_t i, float* o) {

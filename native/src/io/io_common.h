@@ -6,7 +6,9 @@
 #include <cstdint>
 #include <cstring>
 #include <algorithm>
+#include <cmath>
 #include <exception>
+#include <limits>
 #include <streambuf>
 #include <thread>
 #include <string>
@@ -18,9 +20,6 @@
 
 namespace raysplats {
 namespace io {
-
-// SH basis constant of degree 0 (DESIGN §4).
-constexpr double kShC0 = 0.28209479177387814;
 
 // Splats per task for tbb::parallel_for over per-splat work.
 constexpr std::size_t kGrain = 8192;
@@ -144,6 +143,10 @@ private:
     std::exception_ptr error_;
 };
 
+// Header-only probes of each format (splat_io.h: probe_splat_file), beside their readers.
+SplatFileSummary probe_ply(const FileBytes& f);
+SplatFileSummary probe_spz(const FileBytes& f);
+
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);
 
@@ -152,9 +155,44 @@ void check_writable(const GaussianCloud& cloud);
 //  - drops splats with a non-finite position, scale or rotation,
 //  - sets non-finite opacity / SH values to 0,
 //  - replaces zero quaternions by the identity and normalises the others,
-//  - drops splats with opacity < options.min_opacity, keeps the first options.max_count of the rest,
+//  - drops splats with opacity < options.min_opacity, keeps at most options.max_count of the rest (a uniform,
+//    seeded choice over the whole file),
 // counting each repair in `report` (which is reset first; may be null).
 void finalize_cloud(GaussianCloud& cloud, const ReadOptions& options, LoadReport* report);
+
+// The normalisation every reader applies to a stored quaternion (w x y z) in finalize_cloud: false (q untouched)
+// for a zero or non-finite one. Writers that quantise rotations use it to find stored values that read back
+// exactly as the cloud's quaternion, so that an untouched round trip is byte-exact.
+inline bool normalise_quaternion(const float in[4], float out[4]) {
+    const double n2 = double(in[0]) * in[0] + double(in[1]) * in[1] + double(in[2]) * in[2] + double(in[3]) * in[3];
+    if (!(n2 > 1e-30) || !std::isfinite(n2)) return false;
+    const double inv = 1.0 / std::sqrt(n2);
+    for (int j = 0; j < 4; ++j) out[j] = float(in[j] * inv);
+    return true;
+}
+inline bool same_quaternion(const float a[4], const float b[4]) {
+    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2] && a[3] == b[3];
+}
+
+// The float a writer stores for `target` so that the reader's `decode` (increasing) gives `target` back
+// exactly: `guess` (the analytic inverse, e.g. log of a scale) if it decodes to target, else the nearest float
+// to it that does, found by walking ulps toward target (a few steps: the analytic inverse is within rounding of
+// it). Where no float decodes exactly to target (a value the reader cannot produce), `guess`.
+template <typename Decode>
+float stored_value_for(float target, float guess, Decode decode) {
+    if (!std::isfinite(guess)) return guess;
+    const float first = decode(guess);
+    if (first == target) return guess;
+    const float direction = first < target ? std::numeric_limits<float>::infinity() : -std::numeric_limits<float>::infinity();
+    float x = guess;
+    for (int step = 0; step < 64; ++step) {
+        x = std::nextafter(x, direction);
+        const float v = decode(x);
+        if (v == target) return x;
+        if ((first < target) != (v < target)) break;  // passed it: target is between two decoded values
+    }
+    return guess;
+}
 
 // Lower-case extension with the dot (".ply"), or "" if none.
 std::string lower_extension(const std::string& path);

@@ -113,9 +113,13 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
     const std::size_t n = cloud.size();
     const int K = settings.vertices_per_polygon;
     const std::size_t vpg = std::size_t(K) + 1;  // vertices per Gaussian: centre + rim
-    const float rim_falloff = float(std::exp(-0.5 * double(settings.radius) * settings.radius));
     const int coeffs = cloud.coeffs_per_channel();
-    constexpr double kShC0 = io::kShC0;
+    // rho_i of every Gaussian: the radius its polygon had on import (polygon_bridge.h).
+    std::vector<float> polygon_radius(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            polygon_radius[i] = visible_polygon_radius(cloud.opacities[i], settings.radius);
+    });
 
     ExportMesh mesh;
     mesh.name = name;
@@ -131,16 +135,17 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
         const std::size_t count = std::min(per_part, n - g);
         mesh.parts.push_back({g * vpg, count * vpg, g * K, count * K, material});
     }
-    std::vector<float> rim_u(K), rim_v(K);
+    std::vector<double> rim_cos(K), rim_sin(K);
     for (int k = 0; k < K; ++k) {
         const double theta = 2.0 * M_PI * k / K;
-        rim_u[k] = float(0.5 + 0.5 * std::cos(theta));
-        rim_v[k] = float(0.5 + 0.5 * std::sin(theta));
+        rim_cos[k] = std::cos(theta);
+        rim_sin[k] = std::sin(theta);
     }
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain / 4), [&](const tbb::blocked_range<std::size_t>& r) {
         // Rim vertices straight into place, after each Gaussian's centre vertex.
-        gaussian_polygons(cloud, r.begin(), r.end(), settings, &mesh.positions[3 * (r.begin() * vpg + 1)], 3 * vpg);
+        gaussian_polygons(cloud, r.begin(), r.end(), settings, &mesh.positions[3 * (r.begin() * vpg + 1)], 3 * vpg,
+                          polygon_radius.data());
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const float* m = &cloud.positions[3 * i];
             const float* rim = &mesh.positions[3 * (i * vpg + 1)];
@@ -155,8 +160,11 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
                 for (int c = 0; c < 3; ++c) normal[c] = float(nrm[c] / len);
             const float* sh = &cloud.sh[i * std::size_t(coeffs) * 3];
             float rgb[3];
-            for (int c = 0; c < 3; ++c) rgb[c] = io::srgb_to_linear_clamped(float(0.5 + kShC0 * sh[c]));
+            for (int c = 0; c < 3; ++c) rgb[c] = sh_dc_to_linear_unit(sh[c]);
             const float a = std::min(1.0f, std::max(0.0f, cloud.opacities[i]));
+            const double rho = polygon_radius[i];
+            const float rim_alpha = float(a * std::exp(-0.5 * rho * rho));
+            const double rim_uv_radius = 0.5 * rho / settings.radius;  // x = rho (2 uv - 1) on every patch
 
             const std::size_t v0 = i * vpg;
             float* pos = &mesh.positions[3 * v0];
@@ -167,10 +175,11 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
             for (std::size_t k = 0; k < vpg; ++k) {
                 std::memcpy(nor + 3 * k, normal, sizeof(normal));
                 std::memcpy(col + 4 * k, rgb, sizeof(rgb));
-                col[4 * k + 3] = k == 0 ? a : a * rim_falloff;
+                col[4 * k + 3] = k == 0 ? a : rim_alpha;
             }
             uv[0] = uv[1] = 0.5f;
-            for (int k = 0; k < K; ++k) uv[2 + 2 * k] = rim_u[k], uv[3 + 2 * k] = rim_v[k];
+            for (int k = 0; k < K; ++k)
+                uv[2 + 2 * k] = float(0.5 + rim_uv_radius * rim_cos[k]), uv[3 + 2 * k] = float(0.5 + rim_uv_radius * rim_sin[k]);
 
             // Fan from the centre, in the polygon's winding (normal = a1 × a2).
             const std::uint32_t local0 = std::uint32_t(v0 % (per_part * vpg));

@@ -97,7 +97,8 @@ public:
     Vec4f colorAf(VertexHandle vh) const override {
         const float* c = attr(vh, 2, 4);
         if (!c) return Vec4f(1, 1, 1, 1);
-        return Vec4f(linear_to_srgb(c[0]), linear_to_srgb(c[1]), linear_to_srgb(c[2]), std::min(1.0f, std::max(0.0f, c[3])));
+        return Vec4f(linear_to_srgb_clamped(c[0]), linear_to_srgb_clamped(c[1]), linear_to_srgb_clamped(c[2]),
+                     std::min(1.0f, std::max(0.0f, c[3])));
     }
     Vec4uc colorA(VertexHandle vh) const override {
         const float* c = attr(vh, 2, 4);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/color_math.h"
 #include "raysplats/mesh_export.h"
 
 namespace raysplats {
@@ -25,29 +26,16 @@ struct DracoPart {
 };
 DracoPart encode_draco_part(const ExportMesh& mesh, const ExportMeshPart& part, const DracoOptions& options);
 
-// Linear <-> sRGB transfer (IEC 61966-2-1).
-inline float linear_to_srgb(float c) {
-    c = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
-}
-inline float srgb_to_linear_clamped(float c) {
-    c = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-inline std::uint8_t unit_to_byte(float c) {
-    c = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
-    return std::uint8_t(std::lround(c * 255.0f));
-}
+inline std::uint8_t unit_to_byte(float c) { return std::uint8_t(std::lround(clamp_unit(c) * 255.0f)); }
 
 // 8-bit sRGB of a linear value in [0, 1] by a 4096-entry table (the per-vertex pow() would dominate PLY writing).
 class SrgbTable {
 public:
     SrgbTable() {
-        for (int i = 0; i < kSize; ++i) table_[i] = unit_to_byte(linear_to_srgb(float(i) / (kSize - 1)));
+        for (int i = 0; i < kSize; ++i) table_[i] = unit_to_byte(linear_to_srgb_clamped(float(i) / (kSize - 1)));
     }
     std::uint8_t operator()(float linear) const {
-        const float c = linear < 0.0f ? 0.0f : (linear > 1.0f ? 1.0f : linear);
-        return table_[int(c * (kSize - 1) + 0.5f)];
+        return table_[int(clamp_unit(linear) * (kSize - 1) + 0.5f)];
     }
 
 private:

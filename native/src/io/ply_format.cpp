@@ -57,6 +57,7 @@ struct PlyProperty {
     bool is_list = false;
     PlyType count_type = PlyType::UInt8;
     std::size_t offset = 0;  // within a binary record (fixed-size elements only)
+    std::size_t header_offset = 0;  // byte offset of its 'property' line, for errors
 };
 
 struct PlyElement {
@@ -65,6 +66,7 @@ struct PlyElement {
     std::vector<PlyProperty> props;
     std::size_t record_size = 0;  // binary, when no list properties
     bool has_list = false;
+    std::size_t header_offset = 0;  // byte offset of its 'element' line, for errors
 };
 
 enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
@@ -131,6 +133,7 @@ PlyHeader parse_header(const io::FileBytes& f) {
             if (tok.size() != 3) throw FileFormatError(path, "malformed PLY element line '" + line + "'", line_start);
             PlyElement e;
             e.name = tok[1];
+            e.header_offset = line_start;
             const auto r = std::from_chars(tok[2].data(), tok[2].data() + tok[2].size(), e.count);
             if (r.ec != std::errc() || r.ptr != tok[2].data() + tok[2].size())
                 throw FileFormatError(path, "bad element count '" + tok[2] + "' for element '" + e.name + "'", line_start);
@@ -139,10 +142,17 @@ PlyHeader parse_header(const io::FileBytes& f) {
             if (h.elements.empty()) throw FileFormatError(path, "PLY property before any element", line_start);
             PlyElement& e = h.elements.back();
             PlyProperty p;
+            p.header_offset = line_start;
             if (tok.size() >= 2 && tok[1] == "list") {
                 if (tok.size() != 5) throw FileFormatError(path, "malformed PLY list property line '" + line + "'", line_start);
                 if (!parse_ply_type(tok[2], p.count_type) || !parse_ply_type(tok[3], p.type))
                     throw FileFormatError(path, "unknown PLY type in '" + line + "'", line_start);
+                // A count is a number of items: a float count has no meaning, and converting a huge or NaN one
+                // to an integer is undefined behaviour.
+                if (p.count_type == PlyType::Float32 || p.count_type == PlyType::Float64)
+                    throw FileFormatError(path, "list property '" + tok[4] + "' of element '" + e.name + "' has a " +
+                                                    tok[2] + " count; a list count must be an integer type",
+                                          line_start);
                 p.is_list = true;
                 p.name = tok[4];
                 e.has_list = true;
@@ -162,6 +172,12 @@ PlyHeader parse_header(const io::FileBytes& f) {
         }
     }
     if (!have_format) throw FileFormatError(path, "PLY header has no 'format' line", 0);
+    // Records without properties occupy no bytes, so nothing in the file bounds their count: skipping 2^64 - 1
+    // of them would loop for minutes. Such an element holds no data; refuse it rather than guess.
+    for (const PlyElement& e : h.elements)
+        if (e.props.empty() && e.count > 0)
+            throw FileFormatError(path, "PLY element '" + e.name + "' declares " + std::to_string(e.count) +
+                                            " records but no properties", e.header_offset);
     h.data_offset = pos;
     return h;
 }
@@ -193,13 +209,34 @@ constexpr int kNumRequired = 14;
 const char* const kRequired[kNumRequired] = {"x",       "y",       "z",       "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
                                              "scale_0", "scale_1", "scale_2", "rot_0",  "rot_1",  "rot_2",  "rot_3"};
 
+constexpr int kMaxRest = 45;  // f_rest values of SH degree 3: 3 channels x 15 coefficients
+
 struct FieldMap {
     std::vector<int> prop_index;  // canonical field -> index into the vertex element's properties
     int degree = 0;
     int rest_count = 0;
 };
 
-FieldMap map_fields(const std::string& path, const PlyElement& v) {
+// Throws the error for a PLY whose vertices carry none of the Gaussian properties: says whether it is a mesh
+// (it has faces) or a point cloud, and where such files are imported instead.
+[[noreturn]] void throw_not_a_splat_file(const std::string& path, const PlyHeader& h, const PlyElement& v) {
+    std::uint64_t faces = 0;
+    for (const PlyElement& e : h.elements)
+        if (e.name == "face" || e.name == "tristrips") faces += e.count;
+    bool colours = false;
+    for (const PlyProperty& p : v.props) colours |= p.name == "red" || p.name == "diffuse_red";
+    const std::string what =
+        faces > 0 ? "a mesh PLY (" + std::to_string(v.count) + " vertices, " + std::to_string(faces) + " faces)"
+                  : std::string(colours ? "a coloured point cloud PLY (" : "a point cloud PLY (") + std::to_string(v.count) +
+                        " points)";
+    throw FileFormatError(path,
+                          what + ", not a Gaussian splat file: its vertices have none of the Gaussian "
+                                 "properties (f_dc_0, opacity, scale_0, rot_0, ...); import it with "
+                                 "File > Import > Stanford PLY",
+                          v.header_offset);
+}
+
+FieldMap map_fields(const std::string& path, const PlyHeader& h, const PlyElement& v) {
     FieldMap m;
     m.prop_index.assign(kNumRequired, -1);
     std::vector<int> rest;
@@ -216,15 +253,26 @@ FieldMap map_fields(const std::string& path, const PlyElement& v) {
             const char* e = name.data() + name.size();
             const auto r = std::from_chars(b, e, idx);
             if (r.ec != std::errc() || r.ptr != e || idx < 0 || b == e)
-                throw FileFormatError(path, "unrecognised SH property '" + name + "' (expected f_rest_<index>)");
+                throw FileFormatError(path, "unrecognised SH property '" + name + "' (expected f_rest_<index>)",
+                                      v.props[i].header_offset);
+            // Checked before `rest` grows to the index: SH degree 3 has 45 f_rest values, 0..44.
+            if (idx >= kMaxRest)
+                throw FileFormatError(path, "SH property '" + name + "' is beyond SH degree 3 (f_rest_0..f_rest_" +
+                                                std::to_string(kMaxRest - 1) + ")",
+                                      v.props[i].header_offset);
             if (std::size_t(idx) >= rest.size()) rest.resize(std::size_t(idx) + 1, -1);
             if (rest[std::size_t(idx)] >= 0) throw FileFormatError(path, "property '" + name + "' appears twice in element 'vertex'");
             rest[std::size_t(idx)] = int(i);
         }
     }
+    // Positions alone (no Gaussian property at all) are an ordinary mesh or point cloud, not a broken splat file.
+    bool any_gaussian_property = !rest.empty();
+    for (int k = 3; k < kNumRequired; ++k) any_gaussian_property |= m.prop_index[k] >= 0;
+    if (!any_gaussian_property) throw_not_a_splat_file(path, h, v);
     for (int k = 0; k < kNumRequired; ++k)
         if (m.prop_index[k] < 0)
-            throw FileFormatError(path, std::string("missing required property '") + kRequired[k] + "' in element 'vertex'");
+            throw FileFormatError(path, std::string("missing required property '") + kRequired[k] + "' in element 'vertex'",
+                                  v.header_offset);
     int count = 0;
     for (int r : rest) count += r >= 0;
     if (count != 0 && count != 9 && count != 24 && count != 45)
@@ -243,6 +291,43 @@ FieldMap map_fields(const std::string& path, const PlyElement& v) {
     return m;
 }
 
+// The activations of the INRIA layout, in double (the writer inverts them exactly for the float values it writes:
+// see write_ply).
+inline float decode_opacity(double logit) { return float(1.0 / (1.0 + std::exp(-logit))); }
+inline float decode_scale(double log_scale) { return float(std::exp(log_scale)); }
+
+// The rotation to store for the cloud's unit quaternion q: q itself when the reader's normalisation gives it back
+// unchanged, else the nearest float quaternion (each component within one ulp) that it does (normalising a
+// float quaternion is not idempotent in float), so that reading what we wrote gives q exactly.
+void stored_rotation(const float* q, float out[4]) {
+    float back[4];
+    std::copy(q, q + 4, out);
+    if (!io::normalise_quaternion(q, back) || io::same_quaternion(back, q)) return;
+    for (int trial = 0; trial < 81; ++trial) {
+        float candidate[4];
+        for (int j = 0, t = trial; j < 4; ++j, t /= 3) {
+            const int step = t % 3 - 1;  // -1, 0, +1 ulp
+            candidate[j] = step == 0 ? q[j] : std::nextafter(q[j], step * std::numeric_limits<float>::infinity());
+        }
+        if (io::normalise_quaternion(candidate, back) && io::same_quaternion(back, q)) {
+            std::copy(candidate, candidate + 4, out);
+            return;
+        }
+    }
+    // Other lengths: each component rounds on its own, which reaches combinations the ulp steps miss. First lengths
+    // a little off 1, then up to 4 (trained scenes store quaternions of length up to ~3; rare components of
+    // theirs normalise to values no near-unit float quaternion reaches).
+    for (int t = 1; t <= 1024; ++t) {
+        const double length = t <= 256 ? 1.0 + (t % 2 ? 1 : -1) * double((t + 1) / 2) * 0x1p-26 : 1.0 + (t - 256) / 256.0;
+        float candidate[4];
+        for (int j = 0; j < 4; ++j) candidate[j] = float(double(q[j]) * length);
+        if (io::normalise_quaternion(candidate, back) && io::same_quaternion(back, q)) {
+            std::copy(candidate, candidate + 4, out);
+            return;
+        }
+    }
+}
+
 // Stores one splat from its canonical field values (activations applied here, repair in finalize_cloud).
 inline void store_splat(GaussianCloud& c, std::size_t i, const double* f, int K) {
     for (int j = 0; j < 3; ++j) c.positions[3 * i + j] = float(f[j]);
@@ -251,8 +336,8 @@ inline void store_splat(GaussianCloud& c, std::size_t i, const double* f, int K)
     // f_rest is channel-major: f_rest_{ch*(K-1) + j} is coefficient j+1 of channel ch.
     for (int ch = 0; ch < 3; ++ch)
         for (int j = 0; j < K - 1; ++j) sh[(j + 1) * 3 + ch] = float(f[kNumRequired + ch * (K - 1) + j]);
-    c.opacities[i] = float(1.0 / (1.0 + std::exp(-f[6])));
-    for (int j = 0; j < 3; ++j) c.scales[3 * i + j] = float(std::exp(f[7 + j]));
+    c.opacities[i] = decode_opacity(f[6]);
+    for (int j = 0; j < 3; ++j) c.scales[3 * i + j] = decode_scale(f[7 + j]);
     for (int j = 0; j < 4; ++j) c.rotations[4 * i + j] = float(f[10 + j]);
 }
 
@@ -324,8 +409,10 @@ void skip_ascii_element(AsciiCursor& cur, const PlyElement& e) {
         for (const PlyProperty& p : e.props) {
             if (p.is_list) {
                 const double cnt = cur.number(("list count of property '" + p.name + "'").c_str(), i);
-                if (!(cnt >= 0) || cnt > 1e9)
-                    throw FileFormatError(cur.path, "bad list count in property '" + p.name + "'", cur.pos);
+                if (!(cnt >= 0) || cnt > 1e9 || cnt != std::floor(cnt))
+                    throw FileFormatError(cur.path, "bad list count '" + std::to_string(cnt) + "' in property '" + p.name +
+                                                        "' of element '" + e.name + "' (must be a whole number)",
+                                          cur.pos);
                 for (std::uint64_t k = 0; k < std::uint64_t(cnt); ++k) cur.number(("property '" + p.name + "'").c_str(), i);
             } else {
                 cur.number(("property '" + p.name + "'").c_str(), i);
@@ -334,6 +421,18 @@ void skip_ascii_element(AsciiCursor& cur, const PlyElement& e) {
 }
 
 }  // namespace
+
+namespace io {
+SplatFileSummary probe_ply(const FileBytes& f) {
+    const PlyHeader h = parse_header(f);
+    for (const PlyElement& e : h.elements)
+        if (e.name == "vertex") {
+            const FieldMap m = map_fields(f.path(), h, e);
+            return {SplatFormat::Ply, e.count, m.degree};
+        }
+    throw FileFormatError(f.path(), "PLY file has no 'vertex' element");
+}
+}  // namespace io
 
 GaussianCloud read_ply(const std::string& path, const ReadOptions& options, LoadReport* report) {
     io::FileBytes f(path);
@@ -349,7 +448,7 @@ GaussianCloud read_ply(const std::string& path, const ReadOptions& options, Load
         throw FileFormatError(path, "PLY file has no 'vertex' element (first element: " + first + ")");
     }
     const PlyElement& v = h.elements[vi];
-    const FieldMap m = map_fields(path, v);
+    const FieldMap m = map_fields(path, h, v);
     const std::uint64_t n64 = v.count;
     const std::size_t size = f.size();
 
@@ -460,10 +559,16 @@ void write_ply(const std::string& path, const GaussianCloud& cloud) {
                 for (int ch = 0; ch < 3; ++ch)
                     for (int j = 1; j < K; ++j) put(sh[j * 3 + ch]);
                 // Clamp before logit / log so that the file holds no Inf (fmin/fmax also map NaN to the bound).
+                // The stored value is one the reader maps back to the cloud's exactly (stored_value_for), so an
+                // untouched round trip keeps every value, and a file we wrote is rewritten byte for byte.
                 const double a = std::fmin(std::fmax(double(cloud.opacities[i]), 1e-7), 1.0 - 1e-7);
-                put(float(std::log(a / (1.0 - a))));
-                for (int j = 0; j < 3; ++j) put(float(std::log(std::fmax(double(cloud.scales[3 * i + j]), 1e-30))));
-                for (int j = 0; j < 4; ++j) put(cloud.rotations[4 * i + j]);
+                put(io::stored_value_for(cloud.opacities[i], float(std::log(a / (1.0 - a))), decode_opacity));
+                for (int j = 0; j < 3; ++j)
+                    put(io::stored_value_for(cloud.scales[3 * i + j],
+                                             float(std::log(std::fmax(double(cloud.scales[3 * i + j]), 1e-30))), decode_scale));
+                float q[4];
+                stored_rotation(&cloud.rotations[4 * i], q);
+                for (int j = 0; j < 4; ++j) put(q[j]);
             }
         });
         out.write(buf.data(), (c1 - c0) * rs);

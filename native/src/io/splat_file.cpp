@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include "io/io_common.h"
 #include "raysplats/splat_io.h"
@@ -167,13 +168,9 @@ void finalize_cloud(GaussianCloud& c, const ReadOptions& options, LoadReport* re
             for (std::size_t j = 0; j < shn; ++j)
                 if (!std::isfinite(sh[j])) sh[j] = 0.0f, repaired = true;
             if (repaired) ++k.repaired;
-            const double n2 = double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3];
-            if (!(n2 > 1e-30)) {
+            if (!normalise_quaternion(q, q)) {
                 q[0] = 1.0f, q[1] = q[2] = q[3] = 0.0f;
                 ++k.zero_rot;
-            } else {
-                const double inv = 1.0 / std::sqrt(n2);
-                for (int j = 0; j < 4; ++j) q[j] = float(q[j] * inv);
             }
             if (min_op > 0.0f && op < min_op) {
                 keep[i] = 0;
@@ -202,13 +199,30 @@ void finalize_cloud(GaussianCloud& c, const ReadOptions& options, LoadReport* re
 
     // Compact: the kept splats in file order, at most max_count of them.
     const std::size_t limit = options.max_count ? options.max_count : n;
+    const std::size_t kept = n - total.dropped - total.below;
+    if (kept == n && n <= limit) return;
     std::vector<std::size_t> src;
-    if (total.dropped == 0 && total.below == 0) {
-        if (n <= limit) return;
+    src.reserve(std::min(kept, limit));
+    if (kept <= limit) {
+        for (std::size_t i = 0; i < n; ++i)
+            if (keep[i]) src.push_back(i);
+    } else {
+        // A uniform thinning of the whole file, not its first max_count splats (for a scene stored tile by tile those
+        // are a spatial crop): selection sampling (Knuth, TAOCP vol. 2, 3.4.2, Algorithm S) takes each of the `kept`
+        // splats in turn with probability (still needed) / (still left), which picks every subset of `limit` equally
+        // likely and keeps file order. The seed is fixed, so a file always thins to the same splats.
+        std::mt19937_64 rng(0x5eed5eedull ^ kept);
+        std::size_t left = kept;
+        for (std::size_t i = 0; i < n && src.size() < limit; ++i) {
+            if (!keep[i]) continue;
+            const std::size_t needed = limit - src.size();
+            if (std::uniform_int_distribution<std::size_t>(0, left - 1)(rng) < needed) src.push_back(i);
+            --left;
+        }
+        if (report)
+            report->warnings.push_back("kept " + std::to_string(limit) + " of " + std::to_string(kept) +
+                                       " splats (maximum count), chosen uniformly at random over the whole file");
     }
-    src.reserve(std::min(n, limit));
-    for (std::size_t i = 0; i < n && src.size() < limit; ++i)
-        if (keep[i]) src.push_back(i);
     const std::size_t m = src.size();
     GaussianCloud out;
     out.sh_degree = c.sh_degree;
@@ -244,23 +258,6 @@ std::string lower_extension(const std::string& path) {
 // -------------------------------------------------------------------------------------------------------------
 // Public dispatch
 
-SplatFormat splat_format_from_extension(const std::string& path) {
-    const std::string e = io::lower_extension(path);
-    if (e == ".ply") return SplatFormat::Ply;
-    if (e == ".splat") return SplatFormat::Splat;
-    if (e == ".spz") return SplatFormat::Spz;
-    throw FileFormatError(path, "unknown splat format: extension '" + e + "' is not .ply, .splat or .spz");
-}
-
-const char* splat_format_name(SplatFormat format) {
-    switch (format) {
-        case SplatFormat::Ply: return "ply";
-        case SplatFormat::Splat: return "splat";
-        case SplatFormat::Spz: return "spz";
-    }
-    return "unknown";
-}
-
 GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options, LoadReport* report) {
     std::uint8_t head[4] = {0, 0, 0, 0};
     std::size_t got = 0;
@@ -281,6 +278,17 @@ GaussianCloud read_splat_file(const std::string& path, const ReadOptions& option
                           "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic) and extension '" +
                               e + "' is not .splat",
                           0);
+}
+
+SplatFileSummary probe_splat_file(const std::string& path) {
+    io::FileBytes f(path);
+    if (f.size() == 0) throw FileFormatError(path, "file is empty");
+    const std::uint8_t* d = f.data();
+    if (f.size() >= 3 && std::memcmp(d, "ply", 3) == 0) return io::probe_ply(f);
+    if ((f.size() >= 4 && std::memcmp(d, "NGSP", 4) == 0) || (f.size() >= 2 && d[0] == 0x1f && d[1] == 0x8b))
+        return io::probe_spz(f);
+    if (io::lower_extension(path) == ".splat") return {SplatFormat::Splat, f.size() / 32, 0};
+    throw FileFormatError(path, "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
 }
 
 void write_splat_file(const std::string& path, const GaussianCloud& cloud) {

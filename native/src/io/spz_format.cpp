@@ -24,13 +24,17 @@
 //      then the streams back to back, each one zstd frame: positions, alphas, colours, scales, rotations
 //      (smallest three, 4 bytes), sh (only if shDegree > 0), with the same encodings as version 3.
 //
-// Coordinate system: the reference packs in RUB and its loader converts only on request
-// (UnpackOptions::to defaults to CoordinateSystem::UNSPECIFIED, i.e. no conversion; see load-spz.h and
-// unpackGaussians' convertCoordinates(RUB, o.to)). Web viewers (PlayCanvas, loaders.gl) also use the
-// stored values as they are. We therefore read and write the RAW stored coordinates, with no axis flips,
-// like our .ply and .splat readers, so that ply -> spz -> ply is the identity. (Niantic's own ply_to_spz
-// tool converts RDF -> RUB, flipping y and z; files made with it come out with y and z negated relative
-// to the source .ply, exactly as the reference loader gives them without a conversion option.)
+// Coordinate system: SPZ stores RUB (x right, y up, z back). The reference library packs in RUB and converts on
+// load and save (load-spz.h: PackOptions::from / UnpackOptions::to; its ply_to_spz tool converts the RDF of 3DGS
+// .ply files to RUB), and splat-transform and web viewers read .spz as RUB. The core holds every cloud in the
+// RDF (COLMAP) convention of .ply and .splat (DESIGN §4), so the reader converts RUB -> RDF and the writer
+// RDF -> RUB. Both are the same 180° rotation about x, F = diag(1, -1, -1), its own inverse:
+//   positions   (x, y, z) -> (x, -y, -z)          (exact on the 24-bit fixed point: rounding is symmetric)
+//   rotations   (w, x, y, z) -> (w, x, -y, -z)     = F R F, whose axes are those of F R up to sign (F is diagonal,
+//                                                  so F diag(s)^2 F = diag(s)^2): the reference's convertCoordinates
+//   SH          each coefficient times +-1         the core's SH rotation by F (rotate_sh), which maps every real SH
+//                                                  basis function of the 3DGS convention to +- itself
+// so that ply -> spz -> ply and spz -> ply -> spz keep a scene upright, with ours and with other tools.
 //
 // Writer: version 4 (zstd), the version of current Niantic tools and of the real file in shared/data.
 // fractionalBits is 12 as in the reference unless the scene does not fit 24 bits at that precision, in
@@ -42,10 +46,12 @@
 #include <zstd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 
 #include "io/io_common.h"
+#include "raysplats/spherical_harmonics.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
@@ -55,6 +61,34 @@ constexpr std::uint32_t kMagic = 0x5053474e;  // "NGSP"
 constexpr float kColorScale = 0.15f;
 constexpr std::uint8_t kFlagHasExtensions = 0x2;
 constexpr std::size_t kMaxPoints = 100000000;  // sanity bound (the reference refuses above 10M)
+
+// zstd's largest expansion: an RLE block of 4 bytes (3-byte header, 1 byte) regenerates at most one block,
+// 128 KiB (RFC 8878 §3.1.1.2: Block_Maximum_Size). A stream cannot decompress to more than its compressed size
+// times this, so a table of contents claiming more lies, and is refused before anything is allocated for it.
+constexpr std::uint64_t kZstdMaxRatio = (std::uint64_t(128) << 10) / 4;
+
+// The factor (+1 or -1) of each SH coefficient k (0..15) under the RUB <-> RDF conversion, from the core's SH
+// rotation by F = diag(1, -1, -1) (see the file comment). Exactly +-1 (checked), so the conversion is lossless.
+const std::array<float, 16>& rub_rdf_sh_signs() {
+    static const std::array<float, 16> signs = [] {
+        const double flip[9] = {1, 0, 0, 0, -1, 0, 0, 0, -1};
+        std::array<float, 16> out{};
+        out[0] = 1.0f;
+        for (int k = 1; k < 16; ++k) {
+            float in[48] = {}, rotated[48];
+            in[3 * k] = 1.0f;
+            rotate_sh(3, flip, in, rotated);
+            const float s = rotated[3 * k] > 0 ? 1.0f : -1.0f;
+            // A rotation by F maps each basis function to +- itself: anything else is a broken SH rotation.
+            for (int j = 0; j < 16; ++j)
+                if (std::fabs(rotated[3 * j] - (j == k ? s : 0.0f)) > 1e-5f)
+                    throw Error("internal error: the SH rotation by diag(1,-1,-1) is not a sign flip");
+            out[std::size_t(k)] = s;
+        }
+        return out;
+    }();
+    return signs;
+}
 
 int sh_dim(int degree) { return degree == 0 ? 0 : degree == 1 ? 3 : degree == 2 ? 8 : 15; }
 
@@ -100,24 +134,73 @@ inline void unpack_smallest_three(const std::uint8_t* r, float* wxyz) {
     wxyz[0] = xyzw[3], wxyz[1] = xyzw[0], wxyz[2] = xyzw[1], wxyz[3] = xyzw[2];
 }
 
-inline void pack_smallest_three(const float* wxyz, std::uint8_t* out) {
+// Encodes with the component `largest` (x y z w order; -1: the largest one) left out.
+inline void pack_smallest_three(const float* wxyz, std::uint8_t* out, int largest = -1) {
     double q[4] = {wxyz[1], wxyz[2], wxyz[3], wxyz[0]};  // x y z w
     const double nq = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     if (!(nq > 0.0) || !std::isfinite(nq)) q[0] = q[1] = q[2] = 0.0, q[3] = 1.0;
     else
         for (double& v : q) v /= nq;
-    int largest = 0;
-    for (int i = 1; i < 4; ++i)
-        if (std::fabs(q[i]) > std::fabs(q[largest])) largest = i;
+    if (largest < 0) {
+        largest = 0;
+        for (int i = 1; i < 4; ++i)
+            if (std::fabs(q[i]) > std::fabs(q[largest])) largest = i;
+    }
     const bool negate = q[largest] < 0;
     std::uint32_t comp = std::uint32_t(largest);
     for (int i = 0; i < 4; ++i) {
         if (i == largest) continue;
-        const std::uint32_t negbit = std::uint32_t((q[i] < 0) ^ negate);
+        // signbit, not < 0: a stored "-0" (sign bit set, magnitude 0, as the reference writes) reads as -0.0f and
+        // must be written back the same way for an untouched round trip to keep its bytes.
+        const std::uint32_t negbit = std::uint32_t(std::signbit(q[i]) ^ negate);
         const double m = std::min(511.0, std::floor(511.0 * (std::fabs(q[i]) / 0.70710678118654752) + 0.5));
         comp = (comp << 10) | (negbit << 9) | std::uint32_t(m);
     }
     io::store_u32le(out, comp);
+}
+
+// What the reader makes of a stored rotation: unpack_smallest_three, then finalize_cloud's normalisation (before
+// the axis conversion, which only negates components and commutes with it).
+inline void read_back_rotation(std::uint32_t comp, float out[4]) {
+    std::uint8_t bytes[4];
+    io::store_u32le(bytes, comp);
+    float q[4];
+    unpack_smallest_three(bytes, q);
+    if (!io::normalise_quaternion(q, out)) out[0] = 1.0f, out[1] = out[2] = out[3] = 0.0f;
+}
+
+// The smallest-three rotation of a unit quaternion (w x y z, RUB) that reads back as it exactly, when one does:
+// the nearest encoding rounds each 9-bit magnitude of the normalised quaternion, but the reader derives the
+// left-out component from the other three and normalises again, so a value read from a file and written back
+// can land a step away. Tries the nearest encoding, then each magnitude one step either way, also with another
+// component left out (encoders do not always leave out the largest after quantisation: 3 rotations of
+// biker_v4.spz leave out w although x reads back larger); keeps the nearest encoding when none reads back
+// exactly (an edited rotation).
+void pack_rotation(const float* wxyz, std::uint8_t* out) {
+    pack_smallest_three(wxyz, out);
+    float back[4];
+    read_back_rotation(io::load_u32le(out), back);
+    if (io::same_quaternion(back, wxyz)) return;
+    for (int left_out = 0; left_out < 4; ++left_out) {
+        std::uint8_t encoding[4];
+        pack_smallest_three(wxyz, encoding, left_out);
+        const std::uint32_t nearest = io::load_u32le(encoding);
+        for (int trial = 0; trial < 27; ++trial) {
+            std::uint32_t comp = nearest;
+            bool valid = true;
+            for (int field = 0, t = trial; field < 3; ++field, t /= 3) {
+                const int magnitude = int((comp >> (10 * field)) & 511u) + t % 3 - 1;
+                valid &= magnitude >= 0 && magnitude <= 511;
+                comp = (comp & ~(511u << (10 * field))) | (std::uint32_t(magnitude & 511) << (10 * field));
+            }
+            if (!valid) continue;
+            read_back_rotation(comp, back);
+            if (io::same_quaternion(back, wxyz)) {
+                io::store_u32le(out, comp);
+                return;
+            }
+        }
+    }
 }
 
 inline std::uint8_t to_u8(double x) {
@@ -132,13 +215,14 @@ void decode_attributes(const SpzLayout& l, const std::uint8_t* const s[6], Gauss
     const int dim = sh_dim(l.degree);
     const int K = dim + 1;
     const float pos_scale = 1.0f / float(1u << l.fractional_bits);
+    const std::array<float, 16>& signs = rub_rdf_sh_signs();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, l.n, io::kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             for (int j = 0; j < 3; ++j) {
                 const std::uint8_t* p = s[0] + (3 * i + j) * 3;
                 std::int32_t v = std::int32_t(p[0]) | (std::int32_t(p[1]) << 8) | (std::int32_t(p[2]) << 16);
                 if (v & 0x800000) v -= 0x1000000;  // sign extension
-                c.positions[3 * i + j] = float(v) * pos_scale;
+                c.positions[3 * i + j] = float(j == 0 ? v : -v) * pos_scale;  // RUB -> RDF
             }
             c.opacities[i] = s[1][i] / 255.0f;
             float* sh = &c.sh[i * std::size_t(K) * 3];
@@ -153,8 +237,9 @@ void decode_attributes(const SpzLayout& l, const std::uint8_t* const s[6], Gauss
                 q[0] = std::sqrt(std::max(0.0f, 1.0f - (x * x + y * y + z * z)));
                 q[1] = x, q[2] = y, q[3] = z;
             }
+            q[2] = -q[2], q[3] = -q[3];  // RUB -> RDF
             const std::uint8_t* shb = s[5] + i * std::size_t(dim) * 3;
-            for (int k = 0; k < dim * 3; ++k) sh[3 + k] = (float(shb[k]) - 128.0f) / 128.0f;
+            for (int k = 0; k < dim * 3; ++k) sh[3 + k] = signs[std::size_t(1 + k / 3)] * ((float(shb[k]) - 128.0f) / 128.0f);
         }
     });
 }
@@ -293,10 +378,17 @@ GaussianCloud read_spz_v4(const io::FileBytes& f) {
                                   off);
         // A stream of non-zero size cannot be stored in zero bytes.
         if (cs == 0) throw FileFormatError(path, std::string("SPZ v4 stream '") + kNames[k] + "' is empty", off);
+        if (us / kZstdMaxRatio > cs)
+            throw FileFormatError(path, std::string("SPZ v4 stream '") + kNames[k] + "' cannot hold the " + std::to_string(n) +
+                                            " points the header declares: " + std::to_string(us) + " bytes from " +
+                                            std::to_string(cs) + " compressed bytes is more than zstd can expand (" +
+                                            std::to_string(kZstdMaxRatio) + ":1)",
+                                  toc + std::size_t(si) * 16);
         comp_off[k] = std::size_t(off), comp_size[k] = std::size_t(cs);
         off += cs;
     }
-    // Every declared size was checked against n; n is bounded; allocate and decompress (streams in parallel).
+    // Every declared size was checked against n and against what its compressed bytes can expand to, so the
+    // allocation is bounded by the file's size; allocate and decompress (streams in parallel).
     std::vector<std::uint8_t> streams[6];
     std::string errors[6];
     tbb::parallel_for(0, 6, [&](int k) {
@@ -318,6 +410,34 @@ GaussianCloud read_spz_v4(const io::FileBytes& f) {
 }
 
 }  // namespace
+
+namespace io {
+SplatFileSummary probe_spz(const FileBytes& f) {
+    const std::string& path = f.path();
+    std::uint8_t hdr[16];
+    if (f.size() >= 2 && f.data()[0] == 0x1f && f.data()[1] == 0x8b) {
+        z_stream zs{};
+        zs.next_in = const_cast<Bytef*>(f.data());
+        zs.avail_in = static_cast<uInt>(std::min<std::size_t>(f.size(), 0x7fffffff));
+        if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) throw FileFormatError(path, "zlib initialisation failed");
+        zs.next_out = hdr;
+        zs.avail_out = 16;
+        int rc = Z_OK;
+        while (zs.avail_out > 0 && (rc == Z_OK || rc == Z_BUF_ERROR) && zs.avail_in > 0) rc = inflate(&zs, Z_NO_FLUSH);
+        const bool complete = zs.avail_out == 0;
+        inflateEnd(&zs);
+        if (!complete) throw FileFormatError(path, "SPZ gzip stream is corrupt or ends inside the 16-byte header");
+        if (load_u32le(hdr) != kMagic) throw FileFormatError(path, "gzip content is not SPZ: no 'NGSP' magic after decompression");
+    } else if (f.size() >= 16 && load_u32le(f.data()) == kMagic) {
+        std::memcpy(hdr, f.data(), 16);
+    } else {
+        throw FileFormatError(path, "not an SPZ file: neither gzip data nor the 'NGSP' magic", 0);
+    }
+    const std::uint32_t n = load_u32le(hdr + 8);
+    check_header_fields(path, load_u32le(hdr + 4), n, hdr[12], hdr[13]);
+    return {SplatFormat::Spz, n, hdr[12]};
+}
+}  // namespace io
 
 GaussianCloud read_spz(const std::string& path, const ReadOptions& options, LoadReport* report) {
     io::FileBytes f(path);
@@ -354,10 +474,11 @@ void write_spz(const std::string& path, const GaussianCloud& cloud) {
     for (int k = 0; k < 6; ++k) s[k].resize(l.sizes[k]);
     const double pscale = double(1 << fbits);
     const int dim = sh_dim(degree);
+    const std::array<float, 16>& signs = rub_rdf_sh_signs();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             for (int j = 0; j < 3; ++j) {
-                const double pv = cloud.positions[3 * i + j];
+                const double pv = j == 0 ? double(cloud.positions[3 * i]) : -double(cloud.positions[3 * i + j]);  // RDF -> RUB
                 const std::int32_t v = std::isfinite(pv) ? std::int32_t(std::lround(pv * pscale)) : 0;
                 std::uint8_t* p = &s[0][(3 * i + j) * 3];
                 p[0] = std::uint8_t(v), p[1] = std::uint8_t(v >> 8), p[2] = std::uint8_t(v >> 16);
@@ -367,9 +488,12 @@ void write_spz(const std::string& path, const GaussianCloud& cloud) {
             for (int j = 0; j < 3; ++j) s[2][3 * i + j] = to_u8(double(sh[j]) * (kColorScale * 255.0) + 0.5 * 255.0);
             for (int j = 0; j < 3; ++j)
                 s[3][3 * i + j] = to_u8((std::log(std::fmax(double(cloud.scales[3 * i + j]), 1e-30)) + 10.0) * 16.0);
-            pack_smallest_three(&cloud.rotations[4 * i], &s[4][4 * i]);
+            const float* q = &cloud.rotations[4 * i];
+            const float rub[4] = {q[0], q[1], -q[2], -q[3]};  // RDF -> RUB
+            pack_rotation(rub, &s[4][4 * i]);
             std::uint8_t* shb = s[5].data() + i * std::size_t(dim) * 3;
-            for (int k = 0; k < dim * 3; ++k) shb[k] = to_u8(std::round(double(sh[3 + k]) * 128.0) + 128.0);
+            for (int k = 0; k < dim * 3; ++k)
+                shb[k] = to_u8(std::round(double(signs[std::size_t(1 + k / 3)] * sh[3 + k]) * 128.0) + 128.0);
         }
     });
     // Compress the streams in parallel, one zstd frame each (level 12: ~ the size of the reference's files).

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 #include <vector>
 
 #define STB_IMAGE_WRITE_IMPLEMENTATION
@@ -33,6 +34,51 @@ void write_atomically(const std::string& path, Write write) {
 
 }  // namespace
 
+namespace {
+
+void radiance_and_coverage(const SampleRecord& s, float* out) {
+    out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
+}
+void depth_of(const SampleRecord& s, float* out) { out[0] = s.depth; }
+void normal_of(const SampleRecord& s, float* out) { out[0] = s.normal[0], out[1] = s.normal[1], out[2] = s.normal[2]; }
+void coverage_of(const SampleRecord& s, float* out) { out[0] = s.alpha; }
+void gaussian_count_of(const SampleRecord& s, float* out) { out[0] = s.gaussian_count; }
+
+constexpr float kNoSurface = std::numeric_limits<float>::infinity();
+
+constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
+    {FilmChannel::Combined, "rgba", "Combined", "RGBA", "COLOR", SampleCombination::Mean, 0.0f,
+     "Linear radiance, premultiplied by coverage with a transparent background", radiance_and_coverage},
+    {FilmChannel::Depth, "depth", "Depth", "Z", "VALUE", SampleCombination::FirstSample, kNoSurface,
+     "Distance along the camera ray to where the opacity reaches 0.5 (first sample; +inf: none)", depth_of},
+    {FilmChannel::Normal, "normal", "Normal", "XYZ", "VECTOR", SampleCombination::FirstSample, 0.0f,
+     "World-space normal at the depth's surface (first sample; 0: none)", normal_of},
+    {FilmChannel::Alpha, "alpha", "Alpha", "A", "VALUE", SampleCombination::Mean, 0.0f,
+     "Coverage: 1 - the camera segment's final transmittance", coverage_of},
+    {FilmChannel::GaussianCount, "gaussian_count", "Gaussian Count", "X", "VALUE", SampleCombination::Mean, 0.0f,
+     "Debug: Gaussians the camera ray composited (sorted) or accepted (stochastic), mean over samples",
+     gaussian_count_of},
+}};
+
+// Rows in FilmChannel order; a Mean channel's empty value is 0, what a tile's sums hold for a pixel no sample
+// reached.
+constexpr bool table_is_consistent() {
+    for (std::size_t i = 0; i < kChannels.size(); ++i) {
+        if (std::size_t(kChannels[i].channel) != i) return false;
+        if (kChannels[i].combination == SampleCombination::Mean && kChannels[i].empty_value != 0.0f) return false;
+    }
+    return true;
+}
+static_assert(table_is_consistent(), "film_channels(): rows out of FilmChannel order, or a Mean channel not empty at 0");
+
+}  // namespace
+
+int FilmChannelInfo::component_count() const { return int(std::char_traits<char>::length(components)); }
+
+const std::array<FilmChannelInfo, kFilmChannelCount>& film_channels() { return kChannels; }
+
+const FilmChannelInfo& film_channel_info(FilmChannel channel) { return film_channels()[std::size_t(channel)]; }
+
 void Film::resize(int w, int h) {
     allocate(w, h);
     clear(0, 0, w, h);
@@ -41,30 +87,73 @@ void Film::resize(int w, int h) {
 void Film::allocate(int w, int h) {
     width = w;
     height = h;
-    const std::size_t n = pixel_count();
-    rgba.resize(4 * n);
-    depth.resize(n);
-    normal.resize(3 * n);
-    alpha.resize(n);
+    for (const FilmChannelInfo& info : film_channels())
+        (*this)[info.channel].resize(std::size_t(info.component_count()) * pixel_count());
 }
 
 void Film::clear(int x0, int y0, int x1, int y1) {
-    for (int y = y0; y < y1; ++y) {
-        const std::size_t begin = std::size_t(y) * width + x0, end = std::size_t(y) * width + x1;
-        std::fill(rgba.begin() + 4 * begin, rgba.begin() + 4 * end, 0.0f);
-        std::fill(depth.begin() + begin, depth.begin() + end, std::numeric_limits<float>::infinity());
-        std::fill(normal.begin() + 3 * begin, normal.begin() + 3 * end, 0.0f);
-        std::fill(alpha.begin() + begin, alpha.begin() + end, 0.0f);
+    for (const FilmChannelInfo& info : film_channels()) {
+        FloatBuffer& buffer = (*this)[info.channel];
+        const std::size_t c = std::size_t(info.component_count());
+        for (int y = y0; y < y1; ++y) {
+            const std::size_t begin = std::size_t(y) * width + x0, end = std::size_t(y) * width + x1;
+            std::fill(buffer.begin() + c * begin, buffer.begin() + c * end, info.empty_value);
+        }
     }
+}
+
+FilmTile::FilmTile(int x0, int y0, int x1, int y1) : x0_(x0), y0_(y0), x1_(x1), y1_(y1) {
+    const std::size_t pixels = std::size_t(x1 - x0) * std::size_t(y1 - y0);
+    // Sums start at 0; first samples at the empty value, which pixels no camera ray reaches keep (outside a
+    // fisheye's circle, for example).
+    for (const FilmChannelInfo& info : film_channels())
+        values_[std::size_t(info.channel)].assign(std::size_t(info.component_count()) * pixels,
+                                                  info.combination == SampleCombination::Mean ? 0.0f : info.empty_value);
+}
+
+void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) {
+    const std::size_t pixel = std::size_t(y - y0_) * std::size_t(x1_ - x0_) + std::size_t(x - x0_);
+    float values[8];
+    for (const FilmChannelInfo& info : film_channels()) {
+        const int c = info.component_count();
+        float* out = values_[std::size_t(info.channel)].data() + std::size_t(c) * pixel;
+        if (info.combination == SampleCombination::FirstSample) {
+            if (sample == 0) info.from_sample(record, out);
+            continue;
+        }
+        info.from_sample(record, values);
+        for (int k = 0; k < c; ++k) out[k] += values[k];
+    }
+}
+
+void FilmTile::write_to(Film& film, int samples, bool transparent_background) const {
+    const float inv = 1.0f / float(samples);
+    const std::size_t tile_width = std::size_t(x1_ - x0_);
+    for (const FilmChannelInfo& info : film_channels()) {
+        const std::size_t c = std::size_t(info.component_count());
+        const std::vector<float>& values = values_[std::size_t(info.channel)];
+        FloatBuffer& buffer = film[info.channel];
+        const bool mean = info.combination == SampleCombination::Mean;
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const float* v = values.data() + c * (std::size_t(y - y0_) * tile_width + std::size_t(x - x0_));
+                float* out = buffer.data() + c * (std::size_t(y) * film.width + x);
+                for (std::size_t k = 0; k < c; ++k) out[k] = mean ? v[k] * inv : v[k];
+            }
+    }
+    if (transparent_background) return;
+    FloatBuffer& rgba = film.rgba();
+    for (int y = y0_; y < y1_; ++y)
+        for (int x = x0_; x < x1_; ++x) rgba[4 * (std::size_t(y) * film.width + x) + 3] = 1.0f;
 }
 
 void Film::write_png(const std::string& path) const {
     std::vector<unsigned char> bytes(4 * pixel_count());
     for (std::size_t i = 0; i < pixel_count(); ++i) {
-        const float a = rgba[4 * i + 3];
+        const float a = rgba()[4 * i + 3];
         for (int c = 0; c < 3; ++c) {
             // Un-premultiply for PNG's straight alpha.
-            float v = a > 0.0f ? rgba[4 * i + c] / a : 0.0f;
+            float v = a > 0.0f ? rgba()[4 * i + c] / a : 0.0f;
             v = linear_to_srgb(std::clamp(v, 0.0f, 1.0f));
             bytes[4 * i + c] = (unsigned char)std::lround(255.0f * v);
         }
@@ -85,7 +174,7 @@ void Film::write_pfm(const std::string& path) const {
         bool ok = true;
         for (int y = height - 1; y >= 0 && ok; --y) {
             for (int x = 0; x < width; ++x)
-                for (int c = 0; c < 3; ++c) row[3 * x + c] = rgba[4 * (std::size_t(y) * width + x) + c];
+                for (int c = 0; c < 3; ++c) row[3 * x + c] = rgba()[4 * (std::size_t(y) * width + x) + c];
             ok = std::fwrite(row.data(), sizeof(float), row.size(), f) == row.size();
         }
         return std::fclose(f) == 0 && ok;

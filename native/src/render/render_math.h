@@ -1,4 +1,5 @@
-// Small math shared by the render sources (internal): glm conversions, colour, random numbers, frames.
+// Small math shared by the render sources (internal): glm conversions, random numbers, frames; colour is
+// core/color_math.h.
 #pragma once
 
 #include <cmath>
@@ -6,6 +7,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/color_math.h"
 #include "raysplats/render/transform.h"
 
 namespace raysplats {
@@ -21,16 +23,6 @@ inline glm::mat3 linear_part(const Matrix4& m) {
     return a;
 }
 inline glm::vec3 translation_part(const Matrix4& m) { return {m(0, 3), m(1, 3), m(2, 3)}; }
-
-// sRGB (IEC 61966-2-1) display value to linear, extended above 1 with the same power law.
-inline float srgb_to_linear(float c) {
-    if (c <= 0.04045f) return c / 12.92f;
-    return std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-inline float linear_to_srgb(float c) {
-    if (c <= 0.0031308f) return 12.92f * c;
-    return 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
-}
 
 // Integer hashes (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering": pcg / pcg3d-style mixing).
 inline std::uint32_t hash_u32(std::uint32_t v) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 
+#include "gaussian_callbacks.h"
 #include "microfacet_tables.h"
 #include "raysplats/errors.h"
 #include "render_math.h"
@@ -268,7 +269,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
             c.offset = std::uint32_t(k * g.chunk_size);
             c.count = std::uint32_t(std::min<std::size_t>(g.chunk_size, n - c.offset));
             c.scene = rtcNewScene(device);
-            c.geometry = g.create_geometry(device, c);
+            c.geometry = create_gaussian_geometry(device, c);
             rtcAttachGeometry(c.scene, c.geometry);
             rtcReleaseGeometry(c.geometry);  // the chunk's scene holds it
             rtcCommitScene(c.scene);
@@ -324,10 +325,9 @@ double Scene::build(GaussianMode mode) {
     const bool changes =
         std::any_of(s.gaussians.begin(), s.gaussians.end(), [](const auto& g) { return g->dirty != GaussianSet::Dirty::None; }) ||
         std::any_of(s.meshes.begin(), s.meshes.end(), [](const auto& m) { return m->dirty; });
-    if (s.built && s.built_mode == mode && !changes) {
-        s.report = BuildReport{};
-        return 0.0;
-    }
+    // Nothing to do: nothing written either (the report stays that of the last build that did something), so that
+    // the render jobs of a SharedScene may all call build() on the built scene at once.
+    if (s.built && s.built_mode == mode && !changes) return 0.0;
     const auto start = std::chrono::steady_clock::now();
     check_materials(s);
     if (!(s.built && s.built_mode == mode && s.build_changes(mode))) s.build_all(mode);

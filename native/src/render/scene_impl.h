@@ -8,7 +8,7 @@
 #include <embree3/rtcore.h>
 #include <glm/glm.hpp>
 
-#include "gaussian_geometry.h"
+#include "gaussian_primitives.h"
 #include "raysplats/render/scene.h"
 
 namespace raysplats {

@@ -1,8 +1,13 @@
-// The renderer's output: float buffers a binding can expose to numpy without copies (std::vector::data()).
+// The renderer's output: named film channels (render passes), each a float buffer a binding can expose to numpy
+// without copies. What a channel holds is one function of the per-sample record the path integrator returns
+// (SampleRecord), so a new pass is one field there and one row of film_channels(); the bindings, the Blender
+// engine's pass registration and its result writer all iterate that table (pbrt-v4's VisibleSurface -> film).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -14,6 +19,47 @@ namespace raysplats {
 // film (75 MB) no longer costs about 40 ms of serial zeroing and page faults before the first ray.
 using FloatBuffer = std::vector<float, DefaultInitAllocator<float>>;
 
+// What one camera sample contributes to its pixel. Produced by the path integrator for every sample.
+struct SampleRecord {
+    std::array<float, 3> radiance{0.0f, 0.0f, 0.0f};  // linear
+    float alpha = 0.0f;    // coverage: 1 - transmittance of the primary segment (1 where an opaque surface was hit)
+    // Distance along the camera ray to the first surface where the accumulated opacity reaches 0.5; +inf where
+    // there is none.
+    float depth = std::numeric_limits<float>::infinity();
+    std::array<float, 3> normal{0.0f, 0.0f, 0.0f};  // world-space normal at that surface, 0 where none
+    // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
+    // ended; a debug measure of how much each pixel costs.
+    float gaussian_count = 0.0f;
+};
+
+enum class FilmChannel : std::uint8_t { Combined, Depth, Normal, Alpha, GaussianCount };
+constexpr std::size_t kFilmChannelCount = 5;
+
+// How a channel combines the samples of a pixel.
+enum class SampleCombination : std::uint8_t {
+    Mean,         // average over every sample (radiance, coverage)
+    FirstSample,  // the pixel's first sample (depth and normal: an average of two depths is no surface's depth)
+};
+
+struct FilmChannelInfo {
+    FilmChannel channel;
+    const char* key;        // the channel's name in the bindings' result dict and on the command line
+    const char* pass_name;  // the render pass it fills (Blender's name where Blender has the pass)
+    // One letter per component as render passes name them ("RGBA", "Z", "XYZ", "A"); its length is the count.
+    const char* components;
+    const char* kind;       // "COLOR", "VALUE" or "VECTOR"
+    SampleCombination combination;
+    float empty_value;      // what a pixel holds where no sample wrote it (cleared and cancelled tiles)
+    const char* description;
+    // The channel's values of one sample (`components` floats).
+    void (*from_sample)(const SampleRecord& sample, float* out);
+    int component_count() const;
+};
+
+// Every channel of the film, in FilmChannel order.
+const std::array<FilmChannelInfo, kFilmChannelCount>& film_channels();
+const FilmChannelInfo& film_channel_info(FilmChannel channel);
+
 struct RenderStats {
     double render_seconds = 0.0;
     std::uint64_t camera_rays = 0;       // primary rays (one per pixel sample)
@@ -21,34 +67,72 @@ struct RenderStats {
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
     std::uint64_t gaussian_candidates = 0;  // Gaussian intersection tests run by the traversals
     std::uint64_t gaussian_group_candidates = 0;  // the groups of Gaussians (Embree primitives) they belong to
+    // Samples per pixel the film holds: the settings' samples for a finished render; for a cancelled one the
+    // sample passes every tile completed (a tile may hold one more, see render()); for a snapshot the passes done.
+    int samples = 0;
     bool cancelled = false;
 };
 
-// Rows are stored top to bottom (row 0 is the top of the image), pixels left to right.
+// Rows are stored top to bottom (row 0 is the top of the image), pixels left to right; a channel with C components
+// holds width * height * C floats.
 struct Film {
     int width = 0;
     int height = 0;
-    FloatBuffer rgba;    // width * height * 4, linear, premultiplied (see RenderSettings::transparent_background)
-    FloatBuffer depth;   // distance from the camera along the ray to the first surface where the
-                                // accumulated opacity reaches 0.5; +inf where there is none
-    FloatBuffer normal;  // width * height * 3, world-space normal at that surface, 0 where none
-    FloatBuffer alpha;   // width * height: 1 - final transmittance (1 where an opaque surface was hit)
+    std::array<FloatBuffer, kFilmChannelCount> channels;
     RenderStats stats;
 
-    // An empty film: rgba, normal and alpha 0, depth +inf.
+    FloatBuffer& operator[](FilmChannel c) { return channels[std::size_t(c)]; }
+    const FloatBuffer& operator[](FilmChannel c) const { return channels[std::size_t(c)]; }
+    // The channels by name. rgba: linear, premultiplied (see RenderSettings::transparent_background); alpha is
+    // coverage whether or not the background is transparent.
+    FloatBuffer& rgba() { return (*this)[FilmChannel::Combined]; }
+    const FloatBuffer& rgba() const { return (*this)[FilmChannel::Combined]; }
+    FloatBuffer& depth() { return (*this)[FilmChannel::Depth]; }
+    const FloatBuffer& depth() const { return (*this)[FilmChannel::Depth]; }
+    FloatBuffer& normal() { return (*this)[FilmChannel::Normal]; }
+    const FloatBuffer& normal() const { return (*this)[FilmChannel::Normal]; }
+    FloatBuffer& alpha() { return (*this)[FilmChannel::Alpha]; }
+    const FloatBuffer& alpha() const { return (*this)[FilmChannel::Alpha]; }
+    FloatBuffer& gaussian_count() { return (*this)[FilmChannel::GaussianCount]; }
+    const FloatBuffer& gaussian_count() const { return (*this)[FilmChannel::GaussianCount]; }
+
+    // An empty film: every channel at its empty value.
     void resize(int width, int height);
     // Sizes the buffers without writing them (their contents are unspecified until written): for writers that
     // write every pixel, such as the renderer.
     void allocate(int width, int height);
-    // Writes the empty-film values into pixels [x0, x1) x [y0, y1).
+    // Writes the empty values into pixels [x0, x1) x [y0, y1).
     void clear(int x0, int y0, int x1, int y1);
     std::size_t pixel_count() const { return std::size_t(width) * std::size_t(height); }
-    const float* pixel(int x, int y) const { return &rgba[4 * (std::size_t(y) * width + x)]; }
+    const float* pixel(int x, int y) const { return &rgba()[4 * (std::size_t(y) * width + x)]; }
 
     // Writers: PNG is 8-bit sRGB (the linear buffer clamped and encoded), PFM is the float RGB buffer.
     // Both write atomically (temporary file, then rename); failures throw raysplats::Error.
     void write_png(const std::string& path) const;
     void write_pfm(const std::string& path) const;
+};
+
+// One tile's samples, combined channel by channel (SampleCombination) and then written into the film. The
+// renderer keeps one per tile so that tiles run in parallel without sharing sums.
+class FilmTile {
+public:
+    // Pixels [x0, x1) x [y0, y1) of the film.
+    FilmTile(int x0, int y0, int x1, int y1);
+    // Sample number `sample` (0, 1, ...) of film pixel (x, y).
+    void add_sample(int x, int y, int sample, const SampleRecord& record);
+    // Writes the tile's pixels into `film` as the mean of their first `samples` samples (the sums hold exactly
+    // that many). Combined's alpha is coverage with a transparent background
+    // (RenderSettings::transparent_background) and 1 otherwise.
+    void write_to(Film& film, int samples, bool transparent_background) const;
+    // Pixels [x0, x1) x [y0, y1) of the film.
+    int x0() const { return x0_; }
+    int y0() const { return y0_; }
+    int x1() const { return x1_; }
+    int y1() const { return y1_; }
+
+private:
+    int x0_, y0_, x1_, y1_;
+    std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean) or first samples (FirstSample)
 };
 
 }  // namespace raysplats

@@ -1,7 +1,7 @@
 // The scene the renderer traces (DESIGN §6): Gaussian clouds, triangle meshes, materials, lights and the world,
 // in one Embree 3 BVH. Meshes are instanced so that the caller's arrays are shared with Embree without copies
 // (Mitsuba's scene_embree.inl pattern); Gaussians are Embree user geometry with the exact ray tests of
-// gaussian_geometry.cpp.
+// gaussian_callbacks.cpp.
 //
 // Lifetime: a Scene keeps POINTERS to the caller's mesh arrays, textures and Gaussian clouds. They must stay
 // alive and unchanged until the Scene is destroyed (numpy arrays held by the binding, for example).
@@ -75,7 +75,7 @@ public:
     // renders).
     void set_interactive(bool interactive, std::uint32_t chunk_size = 1u << 18);
 
-    // What the last build() did.
+    // What the last build() that had something to do did (a build of an up-to-date scene leaves it).
     struct BuildReport {
         bool full = false;                  // everything was (re)built
         std::size_t gaussian_chunks = 0;    // Gaussian chunk BVHs built

@@ -1,4 +1,5 @@
-// Gaussians as Embree user geometry (internal). Each Gaussian is stored as its centre and three world-space
+// Gaussian primitives and their grouping into Embree primitives (internal); the callbacks that test rays against
+// them are in gaussian_callbacks.h. Each Gaussian is stored as its centre and three world-space
 // rows that map a world offset x - m to canonical coordinates:
 //   volumetric: y = S^-1 R^T A^-1 (x - m), G = exp(-|y|^2 / 2), the ellipsoid of Mahalanobis radius 3 is |y| <= 3;
 //   flat:       rows 0 and 1 as above (the two largest axes), row 2 the plane normal (R's smallest axis pulled
@@ -110,73 +111,11 @@ struct GaussianSet {
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
     // World-space unit normal of a flat primitive.
     glm::vec3 world_normal(std::uint32_t i) const { return glm::normalize(normal_matrix * prims[i].row2); }
-    // Creates the Embree user geometry of a chunk (bounds + intersect + occluded callbacks) and commits it.
-    RTCGeometry create_geometry(RTCDevice device, GaussianChunk& chunk) const;
     // After prepare() changed the chunk's primitives: regroups them and commits the geometry (its BVH is rebuilt
     // when the chunk's scene is committed).
     void update_geometry(GaussianChunk& chunk) const;
     // Groups the chunk's primitives (GaussianGroup) and computes their bounds.
     void build_groups(GaussianChunk& chunk) const;
 };
-
-// What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
-// RTCIntersectContext (the Embree tutorials' pattern for extra per-ray data).
-enum class TraceMode : std::uint32_t {
-    Gather,        // sorted: keep the k nearest hits in `gather`
-    Stochastic,    // accept each with probability alpha, report the nearest accepted as an Embree hit
-    Transmittance, // occlusion query: multiply `transmittance` by (1 - alpha) of every Gaussian on the segment
-    MeshesOnly,    // Gaussians are ignored
-};
-
-struct GatherHit {
-    float t;
-    float alpha;
-    std::uint32_t geom;
-    std::uint32_t prim;
-};
-
-constexpr int kGatherCapacity = 128;  // upper bound of RenderSettings::gather_buffer_size
-
-// Per-ray state of a traversal.
-struct LaneState {
-    // Gather: hits strictly after (after_t, after_key) in (t, key) order, key = geom << 32 | prim.
-    float after_t = -1e30f;
-    std::uint64_t after_key = 0;
-    bool has_after = false;
-    int count = 0;
-    int capacity = 48;  // k, <= kGatherCapacity
-    GatherHit hits[kGatherCapacity];
-    // prefix[j] ~ base_transmittance * prod_{i <= j} (1 - alpha_i): the transmittance behind hit j. An insertion at
-    // p multiplies the entries it shifts by the new hit's (1 - alpha) in the same pass, so no serial product chain
-    // is rescanned (that and the shift were a fifth of the sorted callback). The floats can differ from the
-    // sequential product in the last bits; they only decide where the buffer is cut, and compositing, which
-    // multiplies sequentially, never relies on them (see `saturated`).
-    // The buffer ends at the first hit where prefix falls below the threshold: everything behind it is irrelevant
-    // (unseen hits can only lower the transmittance), so tfar shrinks to its t: it bounds the traversal depth like
-    // an opaque hit would.
-    float prefix[kGatherCapacity];
-    float base_transmittance = 1.0f;
-    // The buffer was cut (prefix fell below the threshold). If compositing the buffer then does not terminate (the
-    // approximate prefix was early by a rounding), the ray goes on behind its last hit.
-    bool saturated = false;
-    // Stochastic: random seed of this ray.
-    std::uint32_t seed = 0;
-    // Statistics: Gaussian tests (group members) and group callbacks (bounding-box candidates) of the traversal.
-    std::uint64_t candidates = 0;
-    std::uint64_t group_candidates = 0;
-    // Transmittance (shadow rays) and the compositing threshold.
-    float transmittance = 1.0f;
-    float transmittance_threshold = 0.0f;
-};
-
-// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data):
-// lane i of a ray packet uses lanes[i]; single rays use lanes[0].
-struct TraceContext : RTCIntersectContext {
-    TraceMode mode = TraceMode::Gather;
-    LaneState* lanes;
-    TraceContext(LaneState* lane_array, TraceMode m) : mode(m), lanes(lane_array) { rtcInitIntersectContext(this); }
-};
-
-inline std::uint64_t gather_key(std::uint32_t geom, std::uint32_t prim) { return (std::uint64_t(geom) << 32) | prim; }
 
 }  // namespace raysplats

@@ -1,0 +1,134 @@
+# Every fact about how the Blender versions RaySplats supports (3.4 to 5.x, DESIGN §9) differ, in one place.
+# Each name says what differs; its definition says since which version, and the comment why it matters here.
+# Callers import these names and never test bpy.app.version or probe the API themselves, so that supporting a new
+# Blender means reading this one file.
+import bpy
+import numpy as np
+
+
+def _since(major, minor):
+    return bpy.app.version >= (major, minor, 0)
+
+
+def _has_property(struct, name):
+    """True when the RNA type `struct` (e.g. bpy.types.Camera) has the property `name`."""
+    return name in struct.bl_rna.properties
+
+
+# --- Materials and lights (Cycles) ---------------------------------------------------------------------------------
+
+# Cycles' Principled BSDF v1 (Blender 2.8-3.x) has the principled (Disney) diffuse with roughness-dependent
+# retro-reflection; v2 (Blender 4.0) a Lambertian diffuse under an energy-conserving dielectric specular layer, F82-tint
+# metal and Specular IOR Level / Specular Tint inputs (native/src/render/bsdf.h models both).
+PRINCIPLED_VERSION = "V2" if _since(4, 0) else "V1"
+
+# The native area light emits radiance P / (4 A), Cycles 3.x's convention (kernel/light/area.h: eval_fac =
+# 0.25 * invarea). Cycles 4.0 emits P / (pi A) (eval_fac = M_1_PI_F * invarea), so the same power is 4 / pi brighter.
+AREA_LIGHT_POWER_SCALE = 4.0 / np.pi if _since(4, 0) else 1.0
+
+# Blender 4.0 moved the panoramic camera settings (panorama_type, fisheye_fov, latitude_min, ...) from Cycles' camera
+# properties onto the Camera itself; before, RaySplats keeps its own copy of them (engine/properties.py).
+CAMERA_HAS_PANORAMA_SETTINGS = _has_property(bpy.types.Camera, "panorama_type")
+
+# How EEVEE draws a transparent material. Blender 4.2's EEVEE Next replaced Material.blend_method (OPAQUE / CLIP /
+# HASHED / BLEND) by surface_render_method (DITHERED / BLENDED), and shadow_method by use_transparent_shadow; 4.2
+# keeps blend_method and shadow_method only as deprecated aliases that it no longer uses.
+MATERIAL_HAS_SURFACE_RENDER_METHOD = _has_property(bpy.types.Material, "surface_render_method")
+
+# EEVEE's engine identifier: Blender 4.2 to 4.x call EEVEE Next "BLENDER_EEVEE_NEXT" (5.0 names it "BLENDER_EEVEE"
+# again).
+EEVEE_ENGINE = next(engine for engine in ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")
+                    if engine in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys())
+
+# Solid shading's "Attribute" colour (the mesh's active colour attribute) is View3DShading.color_type 'VERTEX' on 3.x
+# and 4.x alike (labelled "Attribute" since 3.2).
+SOLID_COLOR_TYPE_ATTRIBUTE = "VERTEX"
+
+# --- Mesh storage ---------------------------------------------------------------------------------------------------
+
+# Blender 3.5 stores vertex positions as the generic float3 attribute "position" (before: MVert structs, read
+# through vertices.foreach_get("co"), 20x slower on 4.x; see mesh_fast_read.py).
+MESH_POSITIONS_ARE_AN_ATTRIBUTE = _since(3, 5)
+
+# Blender 3.6 split a mesh's corner and face structs into int32 arrays of their own: corners were DNA MLoop
+# {unsigned int v, e;} (8 bytes, DNA_meshdata_types.h of 3.4), now the ".corner_vert" and ".corner_edge" attributes;
+# faces were DNA MPoly {int loopstart, totloop; ...} (12 bytes), now one array of corner offsets (face f's corners are
+# offsets[f] up to offsets[f + 1]). MeshLoop.as_pointer() and MeshPolygon.as_pointer() point into these arrays (checked
+# on 3.4 and 4.2); mesh_fast_read.py reads them in place and checks the layout on every mesh.
+MESH_TOPOLOGY_IN_INT32_ARRAYS = _since(3, 6)
+MESH_CORNER_VERTEX_ATTRIBUTE = ".corner_vert"  # from 3.6 on
+LOOP_STRIDE = 4 if MESH_TOPOLOGY_IN_INT32_ARRAYS else 8  # bytes per corner element
+LOOP_VERTEX_OFFSET = 0  # bytes from a corner element to its vertex index (MLoop.v is the first field)
+FACE_STRIDE = 4 if MESH_TOPOLOGY_IN_INT32_ARRAYS else 12  # bytes per face element
+FACE_START_OFFSET = 0  # bytes from a face element to its first corner (MPoly.loopstart; the offset itself)
+FACE_SIZE_OFFSET = None if MESH_TOPOLOGY_IN_INT32_ARRAYS else 4  # to MPoly.totloop; None: offsets[f + 1] - offsets[f]
+
+# Before 3.6 corner and edge vertex indices are unsigned ints (MLoop, MEdge): foreach_get/set copies them in bulk only
+# with a matching uint32 buffer and otherwise converts element by element (14x slower for 12 M corners). From 3.6 on
+# they are int32 attributes. The values always fit in int32.
+MESH_INDEX_DTYPE = np.int32 if MESH_TOPOLOGY_IN_INT32_ARRAYS else np.uint32
+
+# Where faces are stored as offsets, a face's corner count follows from the next face's start and MeshPolygon.loop_total
+# is read-only (4.2); before, it has to be written with the starts.
+FACE_CORNER_COUNT_IS_WRITABLE = not bpy.types.MeshPolygon.bl_rna.properties["loop_total"].is_readonly
+
+# Blender before 3.6 copies a mesh's vertex, corner and face arrays the first time Python reads them from a mesh that
+# only references them (RNA asks for writable arrays: BKE_mesh_verts_for_write and the like), and an object's
+# evaluated mesh references the arrays of its evaluated Mesh datablock when nothing changed them. From 3.6 on meshes
+# share their arrays (implicit sharing) and a read through RNA copies them whichever mesh it is read from.
+EVALUATED_MESH_COPIES_ON_READ = not _since(3, 6)
+
+# Blender 3.5 stores UV maps as generic 2D float attributes of the corner domain (before: MLoopUV layers only reachable
+# through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_fast_read.read_uv_map).
+UV_MAPS_ARE_ATTRIBUTES = _since(3, 5)
+
+# --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
+
+# Blender 5.3 gave PointCloud a type, "Points" or "3D Gaussian Splats", and renders the latter as splats from the point
+# attributes its PLY/SPZ importers write (native_splats.py has the layout). The RNA identifier of that type item is
+# not in any Blender we can run (4.2 to 5.0 have no PointCloud.type), so it is found by its name: None where the
+# feature is missing.
+def _native_gaussian_splat_type():
+    if not hasattr(bpy.types, "PointCloud") or "type" not in bpy.types.PointCloud.bl_rna.properties:
+        return None
+    for item in bpy.types.PointCloud.bl_rna.properties["type"].enum_items:
+        if "SPLAT" in item.identifier.upper() or "SPLAT" in item.name.upper():
+            return item.identifier
+    return None
+
+
+NATIVE_GAUSSIAN_SPLAT_TYPE = _native_gaussian_splat_type()
+HAS_NATIVE_GAUSSIAN_SPLATS = NATIVE_GAUSSIAN_SPLAT_TYPE is not None
+
+# Python can add points to a PointCloud only where it has resize() (not in 3.4 to 5.0, where point clouds get their
+# points from geometry nodes). Without it our splats go to Blender as the vertices of a mesh that carries the same
+# point attributes.
+POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and hasattr(bpy.types.PointCloud, "resize")
+
+_ATTRIBUTE_TYPES = set(bpy.types.Attribute.bl_rna.properties["data_type"].enum_items.keys())
+# Attribute types of the splat layout: 5.3 stores "radiance:base" as a float4 attribute (FLOAT4, a type 5.0 and older
+# lack) and "rotation" as a quaternion (QUATERNION since 4.0). Where a type is missing, the same four floats go into a
+# FLOAT_COLOR attribute of the same name, which stores them unchanged (no colour management on attributes).
+FLOAT4_ATTRIBUTE_TYPE = "FLOAT4" if "FLOAT4" in _ATTRIBUTE_TYPES else "FLOAT_COLOR"
+QUATERNION_ATTRIBUTE_TYPE = "QUATERNION" if "QUATERNION" in _ATTRIBUTE_TYPES else "FLOAT_COLOR"
+# The foreach_get/foreach_set key of each attribute type's values.
+ATTRIBUTE_VALUE_KEY = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR": "color", "QUATERNION": "value",
+                       "FLOAT4": "vector"}
+
+# --- Operators --------------------------------------------------------------------------------------------------------
+
+# bpy.ops.transform.rotate(value=a, orient_axis=X) turns by TRANSFORM_ROTATE_SIGN * a, right-handed about the axis.
+# Measured, rotating (1, 0, 0) by 0.7 about global Z: 3.4 to 4.5 give (cos 0.7, -sin 0.7, 0), clockwise seen from +Z;
+# 5.0 gives (cos 0.7, +sin 0.7, 0).
+TRANSFORM_ROTATE_SIGN = 1.0 if _since(5, 0) else -1.0
+
+# Blender 5.0 first chooses the kind of output, ImageFormatSettings.media_type: only with "MULTI_LAYER_IMAGE" does
+# file_format offer "OPEN_EXR_MULTILAYER" (then its only item); before, file_format offers it directly.
+IMAGE_FORMAT_HAS_MEDIA_TYPE = _has_property(bpy.types.ImageFormatSettings, "media_type")
+
+
+def use_multilayer_exr(image_settings):
+    """Sets `image_settings` (ImageFormatSettings) to write a multilayer OpenEXR file."""
+    if IMAGE_FORMAT_HAS_MEDIA_TYPE:
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"

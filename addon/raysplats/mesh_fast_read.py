@@ -1,0 +1,202 @@
+# Fast reads of a mesh's geometry and attributes into numpy arrays: the generic attributes where Blender has them,
+# else Blender's own vertex, corner and face arrays read in place through as_pointer() (the layout checked on every
+# mesh against blender_compat's facts, with spot checks against RNA), else foreach_get, which always works. Any mesh,
+# not only Gaussian meshes: gaussian_mesh.py builds on these; nothing here knows the Gaussian attribute schema.
+import ctypes
+
+import numpy as np
+
+from . import blender_compat
+
+_WIDTH_OF = {"FLOAT": 1, "FLOAT2": 2, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4}
+# The AttributeGroup data property that holds an attribute's values, by data type (foreach_get/foreach_set).
+ATTRIBUTE_VALUE_PROPERTY = {"FLOAT": "value", "FLOAT2": "vector", "FLOAT_VECTOR": "vector", "FLOAT_COLOR": "color"}
+
+
+def flat_buffer(reuse, size, dtype):
+    """A flat array of `size` elements: `reuse` (an earlier result that may be overwritten) when it has that size and
+    type, else a new one. The viewport reads the same mesh after every edit; reusing the arrays spares the page
+    faults of fresh ones (about 0.2 s per 100 MB)."""
+    if reuse is not None and reuse.size == size and reuse.dtype == dtype and reuse.flags.c_contiguous:
+        return reuse.reshape(-1)
+    return np.empty(size, dtype=dtype)
+
+
+def _attribute(mesh, name, data_type, domain, count):
+    """Attribute `name` of `mesh` when it has this type, domain and number of elements, else None."""
+    attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type != data_type or attribute.domain != domain \
+            or len(attribute.data) != count:
+        return None
+    return attribute
+
+
+def read_attribute(mesh, name, data_type, domain, count, reuse=None):
+    """The values of attribute `name` (count x width float32, or flat for FLOAT) when `mesh` has it with this type,
+    domain and number of elements, else None. `reuse`: an earlier result that may be overwritten."""
+    attribute = _attribute(mesh, name, data_type, domain, count)
+    if attribute is None:
+        return None
+    width = _WIDTH_OF[data_type]
+    out = flat_buffer(reuse, count * width, np.float32)
+    attribute.data.foreach_get(ATTRIBUTE_VALUE_PROPERTY[data_type], out)
+    return out.reshape((count, width)) if width > 1 else out
+
+
+# Reading a Gaussian mesh back was most of the viewport's update after an edit on 4.x. On showroom_1.5M (12 M vertices
+# and corners, warm buffers), Blender 4.2: vertices.foreach_get("co") 0.22 s, loops.foreach_get("vertex_index")
+# 0.57 s; the same values through the attributes "position" and ".corner_vert" 0.011 s and 0.004 s. Blender 3.4:
+# vertices.foreach_get("co") 0.036 s, loops.foreach_get("vertex_index") 0.033 s (into uint32, see
+# blender_compat.MESH_INDEX_DTYPE; 0.47 s into int32), a copy straight out of Blender's loop array 0.005 s. So: the
+# attributes where they exist (4.x), else the loop array in place (3.x), else foreach_get.
+#
+# The byte layouts read in place (blender_compat.LOOP_STRIDE, FACE_STRIDE and their offsets) are checked on the mesh
+# at hand before every read; after an edit of showroom_1.5M, polygons.foreach_get("loop_total") took 0.04 s (3.4) and
+# 0.065 s (4.2), a copy out of the face array in place a few milliseconds.
+_loop_layout_failed = False  # the check failed once: this Blender lays its loops out otherwise, do not look again
+_face_layout_failed = False
+_SPOT_CHECKS = 8  # elements whose value in place is compared with RNA's: the first, the last and 6 evenly in between
+
+
+def read_vertex_positions(mesh, out):
+    """Fills `out` (flat float32, 3 per vertex) with the positions of the vertices of `mesh`. Returns how it read
+    them: "attribute" or "foreach_get"."""
+    attribute = _attribute(mesh, "position", "FLOAT_VECTOR", "POINT", len(mesh.vertices))
+    if attribute is not None:
+        attribute.data.foreach_get("vector", out)
+        return "attribute"
+    mesh.vertices.foreach_get("co", out)
+    return "foreach_get"
+
+
+def _field_view(elements, stride, offset, value_of):
+    """The 4-byte integer `offset` bytes into each element of the bpy collection `elements`, in place in Blender's
+    array (uint32, valid while the mesh is unchanged), or None when the array is not laid out `stride` bytes per
+    element or the spot checks find a value other than value_of(element)."""
+    count = len(elements)
+    first = elements[0].as_pointer()
+    # The span is checked before anything is read, so that the view never reaches past Blender's array.
+    if stride % 4 or offset % 4 or offset + 4 > stride or elements[1].as_pointer() - first != stride \
+            or elements[count - 1].as_pointer() - first != (count - 1) * stride:
+        return None
+    raw = np.frombuffer((ctypes.c_char * (count * stride)).from_address(first), dtype=np.uint32)
+    view = raw.reshape((count, stride // 4))[:, offset // 4]
+    spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
+    if any(value_of(elements[int(i)]) != int(view[i]) for i in spots):
+        return None
+    return view
+
+
+def _loop_vertex_view(loops):
+    """The vertex index of each corner in place in Blender's loop array, or None when the array is not laid out as
+    blender_compat.LOOP_STRIDE and LOOP_VERTEX_OFFSET say."""
+    return _field_view(loops, blender_compat.LOOP_STRIDE, blender_compat.LOOP_VERTEX_OFFSET,
+                       lambda loop: loop.vertex_index)
+
+
+def read_corner_vertices(mesh, out):
+    """Fills `out` (flat, one blender_compat.MESH_INDEX_DTYPE element per corner of `mesh`) with the vertex of each
+    corner. Returns how it read them: "attribute", "pointer" or "foreach_get"."""
+    global _loop_layout_failed
+    attribute = _attribute(mesh, blender_compat.MESH_CORNER_VERTEX_ATTRIBUTE, "INT", "CORNER", len(out))
+    if attribute is not None:
+        attribute.data.foreach_get("value", out.view(np.int32))
+        return "attribute"
+    if not _loop_layout_failed and len(out) > 1:
+        try:
+            view = _loop_vertex_view(mesh.loops)
+        except Exception:  # the fast path is only an optimisation: whatever went wrong, foreach_get still reads
+            view = None
+        if view is not None:
+            np.copyto(out, view.view(out.dtype))
+            return "pointer"
+        _loop_layout_failed = True
+    mesh.loops.foreach_get("vertex_index", out)
+    return "foreach_get"
+
+
+def _face_views(mesh):
+    """(first corner, corner count) of each face of `mesh` (uint32) out of Blender's face array in place (the counts
+    computed from the offsets from 3.6 on), or None when the array is not laid out as blender_compat.FACE_STRIDE,
+    FACE_START_OFFSET and FACE_SIZE_OFFSET say."""
+    faces = mesh.polygons
+    starts = _field_view(faces, blender_compat.FACE_STRIDE, blender_compat.FACE_START_OFFSET,
+                         lambda face: face.loop_start)
+    if starts is None:
+        return None
+    if blender_compat.FACE_SIZE_OFFSET is not None:
+        sizes = _field_view(faces, blender_compat.FACE_STRIDE, blender_compat.FACE_SIZE_OFFSET,
+                            lambda face: face.loop_total)
+        return None if sizes is None else (starts, sizes)
+    # The last offset (the corner count) follows the last face's in Blender's array; it is not read from there, so
+    # that nothing past the elements checked is read.
+    sizes = np.empty(len(starts), dtype=np.uint32)
+    np.subtract(starts[1:], starts[:-1], out=sizes[:-1])
+    sizes[-1] = len(mesh.loops) - int(starts[-1])
+    spots = np.linspace(0, len(sizes) - 1, _SPOT_CHECKS).astype(np.int64)
+    if any(faces[int(i)].loop_total != int(sizes[i]) for i in spots):
+        return None
+    return starts, sizes
+
+
+def read_face_corners(mesh, sizes=None, starts=None):
+    """Fills `sizes` and `starts` (each flat int32, one per face of `mesh`, or None: not wanted) with the number of
+    corners of each face and its first corner. Returns how it read them: "pointer" or "foreach_get"."""
+    global _face_layout_failed
+    if not _face_layout_failed and len(mesh.polygons) > 1:
+        try:
+            views = _face_views(mesh)
+        except Exception:  # the fast path is only an optimisation: whatever went wrong, foreach_get still reads
+            views = None
+        if views is not None:
+            for out, view in ((starts, views[0]), (sizes, views[1])):
+                if out is not None:
+                    np.copyto(out, view.view(np.int32))
+            return "pointer"
+        _face_layout_failed = True
+    for out, name in ((starts, "loop_start"), (sizes, "loop_total")):
+        if out is not None:
+            mesh.polygons.foreach_get(name, out)
+    return "foreach_get"
+
+
+# Why evaluated_mesh (see blender_compat.EVALUATED_MESH_COPIES_ON_READ), measured on showroom_1.5M after an edit,
+# Blender 3.4: the first read of the evaluated mesh's positions 0.09-0.37 s (46,700 page faults: a fresh 192 MB copy),
+# corners 0.08-0.16 s, face sizes 0.05-0.12 s; from the datablock, which owns its arrays, 0.04 s each with foreach_get.
+# From 3.6 on a read through RNA copies the arrays whichever mesh it is read from (4.2: positions 0.07-0.09 s from the
+# evaluated mesh, its datablock or the original alike), so there is nothing to gain there.
+# Parent types that only place their child. Parenting with deformation (Blender's PARSKEL, which RNA calls "ARMATURE"
+# or "LATTICE") adds a virtual deform modifier, as shape keys do (BKE_modifiers_get_virtual_modifierlist).
+_PLACING_PARENT_TYPES = {"OBJECT", "VERTEX", "VERTEX_3", "BONE"}
+
+
+def evaluated_mesh(obj, depsgraph):
+    """The mesh to read the evaluated geometry of `obj` (an evaluated mesh object, not an instance) from: its evaluated
+    mesh, or before Blender 3.6, when evaluation leaves the geometry as it is (Object Mode, no modifiers, no shape
+    keys, no deforming parent), its evaluated Mesh datablock: the same data, without the copy a read of the evaluated
+    mesh makes."""
+    mesh = obj.data
+    if not blender_compat.EVALUATED_MESH_COPIES_ON_READ or obj.original.mode != "OBJECT" or len(obj.modifiers) \
+            or (obj.parent is not None and obj.parent_type not in _PLACING_PARENT_TYPES):
+        return mesh
+    datablock = obj.original.data.evaluated_get(depsgraph)
+    if datablock.shape_keys is not None or (len(datablock.vertices), len(datablock.loops), len(datablock.polygons)) \
+            != (len(mesh.vertices), len(mesh.loops), len(mesh.polygons)):
+        return mesh
+    return datablock
+
+
+def read_uv_map(mesh, name):
+    """The UV map `name` of `mesh` (corners x 2 float32), or None without it: through the generic float2 attribute
+    where UV maps are one (blender_compat.UV_MAPS_ARE_ATTRIBUTES; on showroom_1.5M, Blender 4.2, about 10x faster than
+    uv_layers[...].data.foreach_get("uv")), else through the UV layer."""
+    if blender_compat.UV_MAPS_ARE_ATTRIBUTES:
+        values = read_attribute(mesh, name, "FLOAT2", "CORNER", len(mesh.loops))
+        if values is not None:
+            return values
+    uv_layer = mesh.uv_layers.get(name)
+    if uv_layer is None:
+        return None
+    uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+    uv_layer.data.foreach_get("uv", uvs)
+    return uvs.reshape(-1, 2)

@@ -1,0 +1,254 @@
+# Blender's own Gaussian splats (Blender 5.3) <-> our Gaussian objects: Object > Convert > "Blender Gaussian Splats"
+# and "RaySplats Gaussians", so that splats pass between Blender's renderers (which draw its splat point clouds) and
+# ours (which edits, exports and ray traces our objects).
+#
+# The layout, as Blender 5.3's PLY/SPZ/USD importers write it (source/blender/io/common/IO_gsplat.*, ply_import_*):
+# one point per Gaussian, in object space (the importer puts the file's axis conversion in the object's matrix),
+# with these point attributes:
+#   position        float3      the centre
+#   scale           float3      the three standard deviations, LINEAR (the importer applies exp to the PLY's log
+#                               scales), as ours are
+#   rotation        Quaternion  unit quaternion, w x y z order (Blender's math::Quaternion), as ours
+#   radiance:base   float4      r, g, b: the SH DC COEFFICIENT (the PLY's f_dc_0..2 as they are, not a colour),
+#                               a: the opacity in 0..1 (the importer applies the sigmoid), as ours
+#   radiance:sh_k   float3      SH coefficient k + 1 (k = 0 .. 14 for degree 3) for r, g, b, in the reference 3DGS
+#                               basis order (the PLY's f_rest_* regrouped per coefficient), as our sh[:, k + 1, :]
+# So no value is converted, only moved. The 5.3 release notes call the rotation attribute "quaternion" in places;
+# the importers' code names it "rotation", which is what is written here and read first ("quaternion" is read too).
+# Where the running Blender has no splat point cloud (5.0 and older: no PointCloud type, no way to add points from
+# Python, no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float ones as
+# FLOAT_COLOR (blender_compat has these facts).
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, FloatProperty, IntProperty
+
+from . import axes, blender_compat, errors, gaussian_mesh, native
+from .io_import import add_gaussian_object
+from .mesh_fast_read import read_vertex_positions
+
+ATTR_SCALE = "scale"
+ATTR_ROTATION = "rotation"
+ROTATION_NAMES = (ATTR_ROTATION, "quaternion")
+ATTR_RADIANCE_BASE = "radiance:base"
+SH_REST_PREFIX = "radiance:sh_"
+# The file up axis our object had, kept on the native object so that converting back exports as before.
+UP_AXIS_PROPERTY = "raysplats_up_axis"
+MAX_SH_DEGREE = 3  # what the core supports (the reference 3DGS); Blender's importers also read degree 4
+
+
+def _sh_rest_name(k):
+    return f"{SH_REST_PREFIX}{k}"
+
+
+def _point_count(data):
+    return len(data.points) if hasattr(data, "points") else len(data.vertices)
+
+
+def _point_attribute(data, names, widths):
+    """The first point-domain attribute of `data` named in `names` with a value width in `widths`, or None."""
+    for name in names:
+        attribute = data.attributes.get(name)
+        if attribute is not None and attribute.domain == "POINT" and _width(attribute.data_type) in widths:
+            return attribute
+    return None
+
+
+def _width(data_type):
+    return {"FLOAT": 1, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4, "QUATERNION": 4, "FLOAT4": 4}.get(data_type)
+
+
+def _read(attribute, count):
+    width = _width(attribute.data_type)
+    values = np.empty(count * width, dtype=np.float32)
+    attribute.data.foreach_get(blender_compat.ATTRIBUTE_VALUE_KEY[attribute.data_type], values)
+    return values.reshape((count, width))
+
+
+def _write(data, name, data_type, values):
+    attribute = data.attributes.new(name, data_type, "POINT")
+    attribute.data.foreach_set(blender_compat.ATTRIBUTE_VALUE_KEY[data_type],
+                               np.ascontiguousarray(values, dtype=np.float32).ravel())
+
+
+def is_native_splat_object(obj):
+    """True for a point cloud (or mesh) carrying Blender's splat attributes, other than our own Gaussian objects."""
+    if obj is None or obj.type not in {"POINTCLOUD", "MESH"} or gaussian_mesh.is_gaussian_object(obj):
+        return False
+    data = obj.data
+    return (_point_attribute(data, (ATTR_SCALE,), (3,)) is not None
+            and _point_attribute(data, ROTATION_NAMES, (4,)) is not None
+            and _point_attribute(data, (ATTR_RADIANCE_BASE,), (4,)) is not None)
+
+
+def read_native_splats(data):
+    """The Gaussians of a splat point cloud (or mesh) datablock in its object space, as the core's cloud dict."""
+    count = _point_count(data)
+    if count == 0:
+        raise ValueError(f"'{data.name}' has no points")
+    if hasattr(data, "vertices"):
+        positions = np.empty(count * 3, dtype=np.float32)
+        read_vertex_positions(data, positions)
+        positions = positions.reshape((count, 3))
+    else:
+        positions = _read(data.attributes["position"], count)
+    missing = [name for name, names, width in ((ATTR_SCALE, (ATTR_SCALE,), 3), (ATTR_ROTATION, ROTATION_NAMES, 4),
+                                               (ATTR_RADIANCE_BASE, (ATTR_RADIANCE_BASE,), 4))
+               if _point_attribute(data, names, (width,)) is None]
+    if missing:
+        raise ValueError(f"'{data.name}' is not a Gaussian splat point cloud: no point attribute {', '.join(missing)}")
+    scales = _read(_point_attribute(data, (ATTR_SCALE,), (3,)), count)
+    rotations = _read(_point_attribute(data, ROTATION_NAMES, (4,)), count)
+    base = _read(_point_attribute(data, (ATTR_RADIANCE_BASE,), (4,)), count)
+    # Degree d has (d + 1)^2 - 1 coefficients beyond the DC term; a band only part there is left out, as Blender's
+    # own importer does with an incomplete band.
+    rest = 0
+    while rest < (MAX_SH_DEGREE + 1) ** 2 - 1 and _point_attribute(data, (_sh_rest_name(rest),), (3,)) is not None:
+        rest += 1
+    degree = max(d for d in range(MAX_SH_DEGREE + 1) if (d + 1) ** 2 - 1 <= rest)
+    sh = np.empty((count, (degree + 1) ** 2, 3), dtype=np.float32)
+    sh[:, 0, :] = base[:, :3]
+    for k in range(1, (degree + 1) ** 2):
+        sh[:, k, :] = _read(data.attributes[_sh_rest_name(k - 1)], count)
+    return {"positions": positions, "rotations": rotations, "scales": scales,
+            "opacities": np.ascontiguousarray(base[:, 3]), "sh": sh, "sh_degree": degree}
+
+
+def new_native_splat_data(name, gaussians):
+    """A datablock with the splat layout holding `gaussians` (the core's dict): a Gaussian-splat PointCloud where the
+    running Blender has one, else a mesh whose vertices carry the attributes."""
+    count = len(gaussians["opacities"])
+    if blender_compat.POINTCLOUD_CAN_RESIZE:
+        data = bpy.data.pointclouds.new(name)
+        data.resize(count)
+        if blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+            data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
+        data.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(gaussians["positions"]).ravel())
+    else:
+        data = bpy.data.meshes.new(name)
+        data.vertices.add(count)
+        data.vertices.foreach_set("co", np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel())
+    _write(data, ATTR_SCALE, "FLOAT_VECTOR", gaussians["scales"])
+    _write(data, ATTR_ROTATION, blender_compat.QUATERNION_ATTRIBUTE_TYPE, gaussians["rotations"])
+    sh = gaussians["sh"]
+    base = np.empty((count, 4), dtype=np.float32)
+    base[:, :3] = sh[:, 0, :]
+    base[:, 3] = gaussians["opacities"]
+    _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, base)
+    for k in range(1, sh.shape[1]):
+        _write(data, _sh_rest_name(k - 1), "FLOAT_VECTOR", sh[:, k, :])
+    data.update()
+    return data
+
+
+def _replace_in_scene(context, old, new, keep_original):
+    for collection in old.users_collection:
+        collection.objects.link(new)
+    new.matrix_world = old.matrix_world.copy()
+    new.select_set(True)
+    context.view_layer.objects.active = new
+    if keep_original:
+        old.select_set(False)
+    else:
+        bpy.data.objects.remove(old)
+
+
+def convert_to_native_splats(context, obj, keep_original=False):
+    """Blender splat object made from our Gaussian object `obj` (evaluated: modifiers and edits applied), in the same
+    place (object transform kept, not baked). Returns the new object."""
+    depsgraph = context.evaluated_depsgraph_get()
+    gaussians = gaussian_mesh.recover_object_gaussians(native.core(), obj, depsgraph, np.eye(4))
+    new = bpy.data.objects.new(obj.name + " splats", new_native_splat_data(obj.name, gaussians))
+    new[UP_AXIS_PROPERTY] = obj.raysplats.up_axis
+    _replace_in_scene(context, obj, new, keep_original)
+    return new
+
+
+def convert_from_native_splats(context, obj, vertices_per_polygon=8, radius=3.0, keep_original=False):
+    """Our Gaussian object made from a Blender splat object `obj` (evaluated: geometry nodes applied), in the same
+    place. Its export up axis is the one the splats came from (see UP_AXIS_PROPERTY), else -Y, the axis of the
+    COLMAP-trained .ply scenes Blender's importer reads most. Returns the new object."""
+    data = obj.evaluated_get(context.evaluated_depsgraph_get()).data
+    cloud = read_native_splats(data)
+    up_axis = obj.get(UP_AXIS_PROPERTY, "-Y")
+    if up_axis not in {item[0] for item in axes.UP_AXIS_ITEMS}:
+        up_axis = "-Y"
+    new, _ = add_gaussian_object(context, obj.name.removesuffix(" splats"), cloud, vertices_per_polygon, radius, up_axis)
+    # add_gaussian_object linked it to the active collection; the converted object goes where the original was.
+    for collection in list(new.users_collection):
+        collection.objects.unlink(new)
+    _replace_in_scene(context, obj, new, keep_original)
+    return new
+
+
+class OBJECT_OT_raysplats_to_native_splats(bpy.types.Operator):
+    """Convert the selected RaySplats Gaussian objects to Blender's own Gaussian splat point clouds"""
+
+    bl_idname = "object.raysplats_to_native_splats"
+    bl_label = "Blender Gaussian Splats"
+    bl_options = {"REGISTER", "UNDO"}
+
+    keep_original: BoolProperty(name="Keep Original", default=False,
+                                description="Keep the RaySplats objects beside the new splat objects")
+
+    @classmethod
+    def poll(cls, context):
+        return any(gaussian_mesh.is_gaussian_object(obj) for obj in context.selected_objects)
+
+    @errors.reports_failures("Conversion failed: ")
+    def execute(self, context):
+        objects = [obj for obj in context.selected_objects if gaussian_mesh.is_gaussian_object(obj)]
+        for obj in objects:
+            convert_to_native_splats(context, obj, self.keep_original)
+        if not blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+            self.report({"WARNING"}, "This Blender has no Gaussian splat point clouds (5.3+): the splat attributes "
+                                     "were written on mesh vertices")
+        self.report({"INFO"}, f"Converted {len(objects)} object(s) to Blender Gaussian splats")
+        return {"FINISHED"}
+
+
+class OBJECT_OT_raysplats_from_native_splats(bpy.types.Operator):
+    """Convert the selected Blender Gaussian splat point clouds to editable RaySplats Gaussian objects"""
+
+    bl_idname = "object.raysplats_from_native_splats"
+    bl_label = "RaySplats Gaussians"
+    bl_options = {"REGISTER", "UNDO"}
+
+    vertices_per_polygon: IntProperty(name="Polygon Vertices", default=8, min=3, max=64,
+                                      description="Vertices of the polygon each Gaussian becomes")
+    radius: FloatProperty(name="Polygon Radius", default=3.0, min=0.5, max=6.0,
+                          description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")
+    keep_original: BoolProperty(name="Keep Original", default=False,
+                                description="Keep the splat point clouds beside the new RaySplats objects")
+
+    @classmethod
+    def poll(cls, context):
+        return any(is_native_splat_object(obj) for obj in context.selected_objects)
+
+    @errors.reports_failures("Conversion failed: ")
+    def execute(self, context):
+        objects = [obj for obj in context.selected_objects if is_native_splat_object(obj)]
+        for obj in objects:
+            convert_from_native_splats(context, obj, self.vertices_per_polygon, self.radius, self.keep_original)
+        self.report({"INFO"}, f"Converted {len(objects)} splat object(s) to RaySplats Gaussians")
+        return {"FINISHED"}
+
+
+_classes = (OBJECT_OT_raysplats_to_native_splats, OBJECT_OT_raysplats_from_native_splats)
+
+
+def menu_convert(self, context):
+    self.layout.separator()
+    self.layout.operator(OBJECT_OT_raysplats_to_native_splats.bl_idname)
+    self.layout.operator(OBJECT_OT_raysplats_from_native_splats.bl_idname)
+
+
+def register():
+    for cls in _classes:
+        bpy.utils.register_class(cls)
+    bpy.types.VIEW3D_MT_object_convert.append(menu_convert)
+
+
+def unregister():
+    bpy.types.VIEW3D_MT_object_convert.remove(menu_convert)
+    for cls in reversed(_classes):
+        bpy.utils.unregister_class(cls)

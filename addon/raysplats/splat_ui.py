@@ -1,0 +1,240 @@
+# Where a splat object's settings and tools are shown (issue 13): the Object Properties panel "Gaussian Splats"
+# (Object.raysplats), the 3D view's sidebar tab "Splats", and the entries in Edit Mode's Select and Mesh menus and in
+# Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
+import bpy
+
+from . import gaussian_mesh, splat_selection, splat_tools, splat_transform
+
+SIDEBAR_CATEGORY = "Splats"
+
+
+def _draw_settings(layout, obj):
+    settings = obj.raysplats
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    if not settings.is_gaussian:
+        # Marking reads K, rho and the SH degree back from the splat data, which a bare check box would not.
+        if obj.type == "MESH" and obj.data.attributes.get(gaussian_mesh.ATTR_REST_SCALE) is not None:
+            layout.label(text="This mesh carries splat data", icon="INFO")
+            layout.operator(splat_tools.OBJECT_OT_raysplats_mark_splats.bl_idname)
+        else:
+            layout.label(text="Not a Gaussian splat object")
+        return
+    layout.prop(settings, "is_gaussian", text="Gaussian Splats")
+    column = layout.column()
+    column.label(text=f"{len(obj.data.polygons):,} Gaussians")
+    # K and rho are what the polygons were built with: changing them would re-read every polygon wrongly, so they
+    # are shown, not edited.
+    column = layout.column()
+    column.enabled = False
+    column.prop(settings, "vertices_per_polygon")
+    column.prop(settings, "radius")
+    column.prop(settings, "sh_degree")
+    layout.prop(settings, "source_file")
+    layout.prop(settings, "up_axis")
+
+
+def _draw_colors(layout, obj):
+    settings = obj.raysplats
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    column = layout.column()
+    # In Edit Mode the colour attribute the viewport shows is the edit mesh's and would be overwritten on leaving it.
+    column.enabled = obj.mode != "EDIT"
+    for name in ("exposure", "brightness", "saturation", "hue", "temperature"):
+        column.prop(settings, name)
+
+
+class OBJECT_PT_raysplats(bpy.types.Panel):
+    bl_label = "Gaussian Splats"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+
+    @classmethod
+    def poll(cls, context):
+        return context.object is not None and context.object.type == "MESH"
+
+    def draw(self, context):
+        _draw_settings(self.layout, context.object)
+
+
+class OBJECT_PT_raysplats_colors(bpy.types.Panel):
+    bl_label = "Color"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_raysplats"
+
+    @classmethod
+    def poll(cls, context):
+        return gaussian_mesh.is_gaussian_object(context.object)
+
+    def draw(self, context):
+        _draw_colors(self.layout, context.object)
+
+
+class _SidebarPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = SIDEBAR_CATEGORY
+
+    @classmethod
+    def poll(cls, context):
+        return gaussian_mesh.is_gaussian_object(context.active_object)
+
+
+class VIEW3D_PT_raysplats(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Gaussian Splats"
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and context.active_object.type == "MESH"
+
+    def draw(self, context):
+        _draw_settings(self.layout, context.active_object)
+
+
+class VIEW3D_PT_raysplats_select(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Select"
+    bl_parent_id = "VIEW3D_PT_raysplats"
+
+    def draw(self, context):
+        layout = self.layout
+        column = layout.column(align=True)
+        for cls in (splat_selection.MESH_OT_raysplats_select_opacity, splat_selection.MESH_OT_raysplats_select_size,
+                    splat_selection.MESH_OT_raysplats_select_color, splat_selection.MESH_OT_raysplats_select_floaters):
+            column.operator(cls.bl_idname)
+        box = layout.box()
+        box.prop(context.scene.raysplats_tools, "crop_object")
+        row = box.row(align=True)
+        row.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside").inside = True
+        row.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside").inside = False
+
+
+class VIEW3D_PT_raysplats_clean_up(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Clean Up"
+    bl_parent_id = "VIEW3D_PT_raysplats"
+
+    def draw(self, context):
+        column = self.layout.column(align=True)
+        column.operator(splat_selection.MESH_OT_raysplats_delete_selected.bl_idname, icon="X")
+        column.operator(splat_tools.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
+        column.operator(splat_transform.OBJECT_OT_raysplats_apply_transform.bl_idname)
+
+
+class VIEW3D_PT_raysplats_colors(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Color"
+    bl_parent_id = "VIEW3D_PT_raysplats"
+
+    def draw(self, context):
+        _draw_colors(self.layout, context.active_object)
+
+
+class VIEW3D_MT_raysplats_select(bpy.types.Menu):
+    bl_label = "Gaussian Splats"
+
+    def draw(self, context):
+        layout = self.layout
+        for cls in (splat_selection.MESH_OT_raysplats_select_opacity, splat_selection.MESH_OT_raysplats_select_size,
+                    splat_selection.MESH_OT_raysplats_select_color, splat_selection.MESH_OT_raysplats_select_floaters):
+            layout.operator(cls.bl_idname)
+        layout.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside Crop Box").inside = True
+        layout.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside Crop Box").inside = False
+
+
+class VIEW3D_MT_raysplats_mesh(bpy.types.Menu):
+    bl_label = "Gaussian Splats"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator(splat_selection.MESH_OT_raysplats_delete_selected.bl_idname)
+        layout.operator(splat_tools.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
+
+
+def _draw_select_menu(self, context):
+    if gaussian_mesh.is_gaussian_object(context.edit_object):
+        self.layout.separator()
+        self.layout.menu(VIEW3D_MT_raysplats_select.__name__)
+
+
+def _draw_mesh_menu(self, context):
+    if gaussian_mesh.is_gaussian_object(context.edit_object):
+        self.layout.separator()
+        self.layout.menu(VIEW3D_MT_raysplats_mesh.__name__)
+
+
+def _draw_exact_apply(layout):
+    operator = splat_transform.OBJECT_OT_raysplats_apply_transform.bl_idname
+    for text, flags in (("Location", (True, False, False)), ("Rotation", (False, True, False)),
+                        ("Scale", (False, False, True)), ("All Transforms", (True, True, True)),
+                        ("Rotation & Scale", (False, True, True))):
+        props = layout.operator(operator, text=text)
+        props.location, props.rotation, props.scale = flags
+
+
+def _draw_apply_menu(self, context):
+    # Object > Apply: Blender's own Apply moves only the polygons' corners, which loses a Gaussian's thickness and its
+    # exact shape under a non-uniform scale; for splat objects the exact entries come first.
+    if gaussian_mesh.is_gaussian_object(context.active_object) and not getattr(context, "raysplats_exact_shown", False):
+        self.layout.label(text="Gaussian Splats (exact)")
+        _draw_exact_apply(self.layout)
+        self.layout.separator()
+
+
+class VIEW3D_MT_raysplats_apply(bpy.types.Menu):
+    """Ctrl+A in Object Mode (the add-on's key map): for a splat object its Apply entries are the Gaussian-exact ones,
+    Blender's own (which move only the corners) one level down; for anything else exactly Blender's Apply menu."""
+
+    bl_label = "Apply"
+
+    def draw(self, context):
+        layout = self.layout
+        if not gaussian_mesh.is_gaussian_object(context.active_object):
+            layout.menu_contents("VIEW3D_MT_object_apply")
+            return
+        _draw_exact_apply(layout)
+        layout.separator()
+        layout.context_pointer_set("raysplats_exact_shown", context.active_object)
+        layout.menu("VIEW3D_MT_object_apply", text="Blender's Apply (polygon corners only)")
+
+
+# Key map items the add-on added (key map, item), removed again on unregister.
+_keymap_items = []
+
+
+def _register_keymap():
+    key_configs = bpy.context.window_manager.keyconfigs
+    addon = key_configs.addon if key_configs is not None else None
+    if addon is None:  # background: there is no key configuration
+        return
+    keymap = addon.keymaps.new(name="Object Mode", space_type="EMPTY")
+    item = keymap.keymap_items.new("wm.call_menu", "A", "PRESS", ctrl=True)
+    item.properties.name = VIEW3D_MT_raysplats_apply.__name__
+    _keymap_items.append((keymap, item))
+
+
+CLASSES = (OBJECT_PT_raysplats, OBJECT_PT_raysplats_colors, VIEW3D_PT_raysplats, VIEW3D_PT_raysplats_select,
+           VIEW3D_PT_raysplats_clean_up, VIEW3D_PT_raysplats_colors, VIEW3D_MT_raysplats_select,
+           VIEW3D_MT_raysplats_mesh, VIEW3D_MT_raysplats_apply)
+MENU_HOOKS = (("VIEW3D_MT_select_edit_mesh", "append", _draw_select_menu),
+              ("VIEW3D_MT_edit_mesh", "append", _draw_mesh_menu),
+              ("VIEW3D_MT_object_apply", "prepend", _draw_apply_menu))
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    for menu, how, draw in MENU_HOOKS:
+        getattr(getattr(bpy.types, menu), how)(draw)
+    _register_keymap()
+
+
+def unregister():
+    for keymap, item in _keymap_items:
+        keymap.keymap_items.remove(item)
+    _keymap_items.clear()
+    for menu, _, draw in MENU_HOOKS:
+        getattr(bpy.types, menu).remove(draw)
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,21 @@
+// Memory an import needs and memory the machine has, so that an import too large for the machine is refused
+// before it starts with a message that says so, instead of failing half-way with std::bad_alloc.
+#pragma once
+
+#include <cstdint>
+
+namespace raysplats {
+
+// Peak bytes of importing `count` Gaussians of SH degree `sh_degree` as polygons of `vertices_per_polygon`
+// corners: the cloud read from the file, the polygon arrays made from it (polygon_bridge.h: SplatPolygons), and
+// the host application's mesh filled from them counted twice (Blender's mesh plus the copy its undo step keeps).
+// An estimate from the array sizes: 2.25 GB for showroom_1.5M.ply (1.5 M Gaussians, degree 0, octagons), whose
+// import grew Blender 3.4's peak resident memory by 1.95 GB (background mode, so without an undo copy).
+std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertices_per_polygon);
+
+// Bytes that can be allocated without swapping: the kernel's MemAvailable (/proc/meminfo), lowered to the room
+// left under this process's cgroup memory limit (cgroup v2 memory.max - memory.current) when there is one.
+// 0 when neither can be read (then callers do not refuse anything).
+std::uint64_t available_memory_bytes();
+
+}  // namespace raysplats

@@ -1,0 +1,76 @@
+// What a render is asked for (DESIGN §6): image size, samples, bounces, how Gaussians are composited, and the
+// names by which every front end sets these (the add-on's settings dict, the JSON tool's "render" object and its
+// command-line options): one table, render_setting_parameters(), so a setting is spelt the same everywhere.
+#pragma once
+
+#include <cstdint>
+
+#include "raysplats/render/parameters.h"
+#include "raysplats/render/scene.h"
+
+namespace raysplats {
+
+enum class Compositing {
+    Sorted,      // exact front-to-back order: k-nearest buffer per ray, re-traced until the segment is done
+    Stochastic,  // one traversal per sample, each candidate accepted with probability alpha, nearest kept
+};
+
+// The pixel filter: how camera samples spread around their pixel's centre (Cycles' Film > Pixel Filter; see
+// src/render/pixel_filter.h for the shapes and what their widths mean).
+enum class PixelFilter {
+    Box,             // uniform over the width (width 1: the pixel's own square)
+    Gaussian,        // exp(-8 x^2 / w^2)
+    BlackmanHarris,  // Cycles' default, at width 1.5
+};
+
+struct RenderSettings {
+    int width = 640;
+    int height = 480;
+    int samples = 16;        // per pixel, 1 .. 1 << 20
+    int max_bounces = 4;     // 0 = direct light only, up to 1024
+    std::uint32_t seed = 0;  // the image is a function of the seed only (not of thread scheduling)
+    Compositing compositing = Compositing::Sorted;
+    float transmittance_threshold = 1e-3f;  // stop compositing when T drops below this, in [0, 1)
+    GaussianMode gaussian_mode = GaussianMode::Flat;
+    // Gaussians carry baked radiance; with this their colour is scaled by the lights' visibility from the
+    // Gaussian centre (meshes only occlude), so meshes cast shadows on splats.
+    bool meshes_shadow_gaussians = false;
+    int tile_size = 32;
+    // k of the per-ray k-nearest buffer (1 .. 128). Any k gives the same image; it trades re-traces against
+    // culling. The buffer is also cut where the transmittance falls below the threshold. 96 covers the ~34
+    // Gaussians an indoor ray composites (showroom_1.5M) with room for the out-of-order arrivals of a traversal, so
+    // rays are rarely re-traced: bench_render, CPU time per ray k = 16 / 32 / 48 / 64 / 96 / 128:
+    // 5.6 / 3.6 / 3.1 / 2.8 / 2.7 / 2.7 us.
+    int gather_buffer_size = 96;
+    // Samples spread around the pixel centre by the pixel filter; when false every sample goes through the centre.
+    bool jitter = true;
+    // The default, a box of one pixel, is the plain jitter inside the pixel that images had before filters existed.
+    PixelFilter pixel_filter = PixelFilter::Box;
+    float filter_width = 1.0f;  // in pixels, 0.01 .. 10 (Cycles' range)
+    // true: camera rays that escape show nothing (rgba is premultiplied by coverage, Blender's Film >
+    // Transparent). false: they show the world, and rgba alpha is 1. The alpha buffer is coverage either way.
+    bool transparent_background = false;
+    // Cycles' "Caustics" (Render > Light Paths > Caustics, defaults on): when off, a path whose last bounce was
+    // diffuse gets no glossy/specular reflection (refraction) lobes at its next surface, so it cannot make
+    // reflective (refractive) caustics; a surface left without lobes (a mirror, a metal) absorbs such paths.
+    bool caustics_reflective = true;
+    bool caustics_refractive = true;
+    // Sorted mode: camera rays first traverse the scene only up to a little beyond where their neighbours' (or,
+    // after the first sample, their own previous) camera segments ended, and go on from there when that was too
+    // early: the traversal then skips what lies behind the first opaque layer. The image is the same either way (the
+    // same Gaussians composited in the same order); off is for tests and measurements.
+    bool speculative_ends = true;
+
+    // Throws InvalidArgument with the offending setting.
+    void validate() const;
+};
+
+// The names of the enums above and of GaussianMode ("SORTED", "FLAT", ...).
+const NameTable<Compositing>& compositing_names();
+const NameTable<GaussianMode>& gaussian_mode_names();
+const NameTable<PixelFilter>& pixel_filter_names();
+
+// Every field of RenderSettings by name (the field's own name), with its type and what it sets.
+const ParameterTable<RenderSettings>& render_setting_parameters();
+
+}  // namespace raysplats

@@ -1,0 +1,172 @@
+// Python <-> core conversions (conversions.h).
+#include "conversions.h"
+
+#include <algorithm>
+
+#include "raysplats/errors.h"
+#include "raysplats/render/camera_parameters.h"
+
+namespace raysplats::python {
+
+namespace {
+
+std::string shape_text(const std::vector<std::string>& sizes) {
+    std::string s = "(";
+    for (std::size_t i = 0; i < sizes.size(); ++i) s += (i ? "," : "") + sizes[i];
+    return s + ")";
+}
+
+}  // namespace
+
+std::string shape_text(const py::array& array) {
+    std::vector<std::string> sizes;
+    for (py::ssize_t d = 0; d < array.ndim(); ++d) sizes.push_back(std::to_string(array.shape(d)));
+    return shape_text(sizes);
+}
+
+void require_size(const py::array& array, const char* name, py::ssize_t expected) {
+    if (array.size() != expected)
+        throw InvalidArgument(std::string("array '") + name + "' has " + std::to_string(array.size()) +
+                              " values but " + std::to_string(expected) + " were expected");
+}
+
+py::ssize_t require_shape(const py::array& array, const char* name, std::initializer_list<py::ssize_t> shape) {
+    bool ok = array.ndim() == py::ssize_t(shape.size());
+    std::vector<std::string> want;
+    py::ssize_t i = 0;
+    for (const py::ssize_t size : shape) {
+        ok = ok && (size == kAnySize || array.shape(i) == size);
+        want.push_back(size == kAnySize ? "N" : std::to_string(size));
+        ++i;
+    }
+    if (!ok)
+        throw InvalidArgument(std::string("array '") + name + "' has shape " + shape_text(array) + " but " +
+                              shape_text(want) + " was expected");
+    return array.ndim() ? array.shape(0) : 0;
+}
+
+int sh_degree_from_coefficients(py::ssize_t coefficients, const char* name) {
+    for (int degree = 0; degree <= 3; ++degree)
+        if (sh_coeff_count(degree) == coefficients) return degree;
+    throw InvalidArgument(std::string("array '") + name + "' has " + std::to_string(coefficients) +
+                          " SH coefficients per channel but 1, 4, 9 or 16 were expected");
+}
+
+GaussianCloud cloud_from_arrays(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                                const FloatArray& opacities, const FloatArray& sh) {
+    const py::ssize_t n = require_shape(positions, "positions", {kAnySize, 3});
+    require_shape(rotations, "rotations", {n, 4});
+    require_shape(scales, "scales", {n, 3});
+    require_shape(opacities, "opacities", {n});
+    require_shape(sh, "sh", {n, kAnySize, 3});
+    GaussianCloud cloud;
+    cloud.sh_degree = sh_degree_from_coefficients(sh.shape(1), "sh");
+    auto copy = [](const FloatArray& a, std::vector<float>& to) { to.assign(a.data(), a.data() + a.size()); };
+    copy(positions, cloud.positions);
+    copy(rotations, cloud.rotations);
+    copy(scales, cloud.scales);
+    copy(opacities, cloud.opacities);
+    copy(sh, cloud.sh);
+    return cloud;
+}
+
+py::dict cloud_to_dict(GaussianCloud&& cloud) {
+    const auto n = py::ssize_t(cloud.size());
+    const auto coeffs = py::ssize_t(cloud.coeffs_per_channel());
+    py::dict d;
+    d["sh_degree"] = cloud.sh_degree;
+    d["positions"] = to_numpy(std::move(cloud.positions), {n, 3});
+    d["rotations"] = to_numpy(std::move(cloud.rotations), {n, 4});
+    d["scales"] = to_numpy(std::move(cloud.scales), {n, 3});
+    d["opacities"] = to_numpy(std::move(cloud.opacities), {n});
+    d["sh"] = to_numpy(std::move(cloud.sh), {n, coeffs, 3});
+    return d;
+}
+
+Matrix4 matrix_from(const py::handle& value, const char* name) {
+    Matrix4 m;
+    if (value.is_none()) return m;
+    const FloatArray a = FloatArray::ensure(value);
+    if (!a) throw InvalidArgument(std::string("'") + name + "' must be a 4x4 matrix");
+    require_shape(a, name, {4, 4});
+    std::copy(a.data(), a.data() + 16, m.m.begin());
+    return m;
+}
+
+std::array<float, 3> rgb_from(const py::handle& value, const char* name) {
+    const FloatArray a = FloatArray::ensure(value);
+    if (!a || a.ndim() != 1 || (a.size() != 3 && a.size() != 4))
+        throw InvalidArgument(std::string("'") + name + "' must have 3 components (or 4, the 4th ignored); got " +
+                              std::string(py::repr(value)));
+    return {a.data()[0], a.data()[1], a.data()[2]};
+}
+
+ParameterValue parameter_value_from(const py::handle& value, const std::string& name, const char* what) {
+    // bool before int: Python's bool is an int. numpy scalars count as what they hold.
+    if (py::isinstance<py::bool_>(value) || py::isinstance(value, py::module_::import("numpy").attr("bool_")))
+        return value.cast<bool>();
+    if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+    if (py::isinstance<py::float_>(value) ||
+        py::isinstance(value, py::module_::import("numpy").attr("floating")))
+        return value.cast<double>();
+    // Arrays before integers: numpy arrays have __index__ (for 0-d integer arrays).
+    if (py::isinstance<py::array>(value) || py::isinstance<py::sequence>(value))
+        return matrix_from(value, name.c_str());
+    if (PyIndex_Check(value.ptr())) return value.cast<std::int64_t>();
+    throw InvalidArgument(std::string(what) + " '" + name + "' cannot be a " +
+                          std::string(py::str(value.get_type().attr("__name__"))));
+}
+
+const char* python_type_name(ParameterType type) {
+    switch (type) {
+        case ParameterType::Bool: return "bool";
+        case ParameterType::Integer: return "int";
+        case ParameterType::Real: return "float";
+        case ParameterType::Name: return "str";
+        case ParameterType::Matrix: return "matrix";
+    }
+    return "?";
+}
+
+Camera camera_from(const py::dict& camera) {
+    Camera c;
+    apply_dict(camera, camera_parameters(), c);
+    c.validate();
+    return c;
+}
+
+RenderSettings settings_from(const py::dict& settings) {
+    RenderSettings s;
+    apply_dict(settings, render_setting_parameters(), s);
+    s.validate();
+    return s;
+}
+
+FilmChannel film_channel_of(const std::string& key) {
+    std::vector<std::string> keys;
+    for (const FilmChannelInfo& info : film_channels()) {
+        if (key == info.key) return info.channel;
+        keys.emplace_back(info.key);
+    }
+    throw_unknown_name("film channel", key, keys);
+}
+
+py::dict film_to_dict(Film&& film) {
+    const py::ssize_t h = film.height, w = film.width;
+    py::dict d;
+    d["cancelled"] = film.stats.cancelled;
+    d["samples"] = film.stats.samples;
+    d["render_seconds"] = film.stats.render_seconds;
+    d["camera_rays"] = film.stats.camera_rays;
+    d["gaussian_hits"] = film.stats.gaussian_hits;
+    // One array per film channel, (h, w) for one component and (h, w, c) for more.
+    for (const FilmChannelInfo& info : film_channels()) {
+        const int c = info.component_count();
+        if (film[info.channel].empty() && film.pixel_count() > 0) continue;
+        d[info.key] = c == 1 ? to_numpy(std::move(film[info.channel]), {h, w})
+                             : to_numpy(std::move(film[info.channel]), {h, w, py::ssize_t(c)});
+    }
+    return d;
+}
+
+}  // namespace raysplats::python

@@ -1,0 +1,42 @@
+// Colour numerics shared by the core, the renderer and the file formats (internal): the sRGB transfer and the
+// display colour of a Gaussian's degree-0 SH term. One definition each; where call sites clamp differently, the
+// clamp is named here or written at the call site, so that every caller keeps its exact results.
+#pragma once
+
+#include <cmath>
+
+#include "raysplats/spherical_harmonics.h"
+
+namespace raysplats {
+
+// sRGB (IEC 61966-2-1) display value to linear, extended above 1 with the same power law (the renderer's colours
+// may exceed 1).
+inline float srgb_to_linear(float c) {
+    if (c <= 0.04045f) return c / 12.92f;
+    return std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+inline float linear_to_srgb(float c) {
+    if (c <= 0.0031308f) return 12.92f * c;
+    return 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
+
+// c limited to [0, 1]; NaN stays NaN.
+inline float clamp_unit(float c) { return c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c); }
+
+// The transfer for colours stored in [0, 1] (mesh colour attributes, 8-bit sRGB): clamped first.
+inline float srgb_to_linear_clamped(float c) { return srgb_to_linear(clamp_unit(c)); }
+inline float linear_to_srgb_clamped(float c) { return linear_to_srgb(clamp_unit(c)); }
+
+// Display (sRGB) colour channel of a Gaussian's degree-0 SH coefficient f_dc, 0.5 + SH_C0 f_dc (reference 3DGS
+// SH2RGB; DESIGN §4), unclamped, and its inverse.
+inline double sh_dc_to_display(double f_dc) { return 0.5 + kShC0 * f_dc; }
+inline double display_to_sh_dc(double display) { return (display - 0.5) / kShC0; }
+// The same in single precision, as the renderer precomputes degree-0 colours (its images depend on this rounding,
+// which can differ from float(sh_dc_to_display(f_dc)) in the last bit).
+inline float sh_dc_to_display_single(float f_dc) { return 0.5f + float(kShC0) * f_dc; }
+
+// Linear colour channel of a Gaussian's degree-0 SH term for mesh colour attributes: the display value clamped to
+// [0, 1] (DESIGN §4) and decoded.
+inline float sh_dc_to_linear_unit(double f_dc) { return srgb_to_linear_clamped(float(sh_dc_to_display(f_dc))); }
+
+}  // namespace raysplats

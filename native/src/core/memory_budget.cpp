@@ -1,0 +1,64 @@
+// Import memory estimate and available memory (raysplats/memory_budget.h).
+#include "raysplats/memory_budget.h"
+
+#include <algorithm>
+#include <fstream>
+#include <string>
+
+#include "raysplats/gaussian_cloud.h"
+
+namespace raysplats {
+
+std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertices_per_polygon) {
+    const std::uint64_t k = std::uint64_t(std::max(3, vertices_per_polygon));
+    const std::uint64_t coeffs = std::uint64_t(sh_coeff_count(std::min(std::max(sh_degree, 0), 3)));
+    // GaussianCloud: position 3, rotation 4, scale 3, opacity 1, SH 3 per coefficient (floats).
+    const std::uint64_t cloud = 4 * (11 + 3 * coeffs);
+    // SplatPolygons per Gaussian: K vertices (3 floats), K corners (vertex, edge: 2 ints; colour 4 and uv 2 floats),
+    // K edges (2 ints), face start and count (2 ints), thickness (1 float), local SH (3 floats per coefficient).
+    const std::uint64_t polygons = k * (12 + 8 + 16 + 8 + 8) + 8 + 4 + 12 * coeffs;
+    // The host's mesh: the same geometry and corner attributes, plus per-face attributes (opacity, thickness, rest
+    // centre 3, rotation 4, scale 3 floats; SH 3 per coefficient) and per-element flags.
+    const std::uint64_t mesh = polygons + 4 * (1 + 3 + 4 + 3) + 2 * k + 4;
+    return count * (cloud + polygons + 2 * mesh);
+}
+
+namespace {
+// The first number in a file, or `fallback` (for "max" and for files that cannot be read).
+std::uint64_t read_number(const std::string& path, std::uint64_t fallback) {
+    std::ifstream in(path);
+    unsigned long long v = 0;
+    if (!(in >> v)) return fallback;
+    return v;
+}
+}  // namespace
+
+std::uint64_t available_memory_bytes() {
+    std::uint64_t available = 0;
+    std::ifstream meminfo("/proc/meminfo");
+    std::string key;
+    unsigned long long kb = 0;
+    std::string unit;
+    while (meminfo >> key >> kb >> unit)
+        if (key == "MemAvailable:") {
+            available = std::uint64_t(kb) * 1024;
+            break;
+        }
+    // This process's cgroup (v2: the line "0::/path" of /proc/self/cgroup).
+    std::string group;
+    std::ifstream cgroups("/proc/self/cgroup");
+    for (std::string line; std::getline(cgroups, line);)
+        if (line.rfind("0::", 0) == 0) group = line.substr(3);
+    if (group == "/") group.clear();
+    const std::string dir = "/sys/fs/cgroup" + group;
+    constexpr std::uint64_t kNone = ~std::uint64_t(0);
+    const std::uint64_t limit = read_number(dir + "/memory.max", kNone);
+    if (limit != kNone) {
+        const std::uint64_t used = read_number(dir + "/memory.current", 0);
+        const std::uint64_t room = limit > used ? limit - used : 0;
+        available = available ? std::min(available, room) : room;
+    }
+    return available;
+}
+
+}  // namespace raysplats

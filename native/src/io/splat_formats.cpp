@@ -1,0 +1,35 @@
+// The table of splat formats (raysplats/splat_io.h) and the lookups by extension and name that use it.
+#include <string>
+
+#include "io_common.h"
+#include "raysplats/errors.h"
+#include "raysplats/splat_io.h"
+
+namespace raysplats {
+
+const std::vector<SplatFormatInfo>& splat_formats() {
+    static const std::vector<SplatFormatInfo> formats{
+        {SplatFormat::Ply, "ply", {".ply"}, "INRIA 3D Gaussian Splatting PLY", "-Y"},
+        {SplatFormat::Splat, "splat", {".splat"}, "antimatter15 .splat (32-byte records, no higher SH bands)", "-Y"},
+        {SplatFormat::Spz, "spz", {".spz"}, "Niantic SPZ (compressed)", "-Y"}};
+    return formats;
+}
+
+SplatFormat splat_format_from_extension(const std::string& path) {
+    const std::string e = io::lower_extension(path);
+    std::string known;
+    for (const SplatFormatInfo& f : splat_formats())
+        for (const char* extension : f.extensions) {
+            if (e == extension) return f.format;
+            known += (known.empty() ? "" : ", ") + std::string(extension);
+        }
+    throw FileFormatError(path, "unknown splat format: extension '" + e + "' is not one of " + known);
+}
+
+const char* splat_format_name(SplatFormat format) {
+    for (const SplatFormatInfo& f : splat_formats())
+        if (f.format == format) return f.name;
+    return "unknown";
+}
+
+}  // namespace raysplats

@@ -1,0 +1,53 @@
+// Gaussians as Embree user geometry (internal): the per-ray state that traversals hand to the callbacks, and the
+// geometry whose bounds / intersect / occluded callbacks test rays against a chunk's GaussianGroups with SIMD.
+#pragma once
+
+#include <cstdint>
+
+#include <embree3/rtcore.h>
+
+#include "gather_buffer.h"
+#include "gaussian_primitives.h"
+
+namespace raysplats {
+
+// What a traversal collects from Gaussians; the context passed to rtcIntersect1/rtcOccluded1 extends
+// RTCIntersectContext (the Embree tutorials' pattern for extra per-ray data).
+enum class TraceMode : std::uint32_t {
+    Gather,        // sorted: keep the k nearest hits in `gather`
+    Stochastic,    // accept each with probability alpha, report the nearest accepted as an Embree hit
+    Transmittance, // occlusion query: multiply `transmittance` by (1 - alpha) of every Gaussian on the segment
+    MeshesOnly,    // Gaussians are ignored
+};
+
+// Per-ray state of a traversal.
+struct LaneState {
+    // Gather: the k nearest hits of the current pass.
+    GatherBuffer gather;
+    // Stochastic: random seed of this ray.
+    std::uint32_t seed = 0;
+    // Statistics: Gaussian tests (group members) and group callbacks (bounding-box candidates) of the traversal.
+    std::uint64_t candidates = 0;
+    std::uint64_t group_candidates = 0;
+    // Transmittance (shadow rays) and the compositing threshold (also where the gather buffer is cut).
+    float transmittance = 1.0f;
+    float transmittance_threshold = 0.0f;
+};
+
+// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data):
+// lane i of a ray packet uses lanes[i]; single rays use lanes[0].
+struct TraceContext : RTCIntersectContext {
+    TraceMode mode = TraceMode::Gather;
+    LaneState* lanes;
+    TraceContext(LaneState* lane_array, TraceMode m) : mode(m), lanes(lane_array) { rtcInitIntersectContext(this); }
+};
+
+// Creates the Embree user geometry of a chunk of `chunk.set` (bounds + intersect + occluded callbacks for the set's
+// flat or volumetric Gaussians), groups its primitives and commits it.
+RTCGeometry create_gaussian_geometry(RTCDevice device, GaussianChunk& chunk);
+
+// The group test the callbacks use on this machine: "avx2" (AVX2 + FMA) or "sse" (the x86-64 baseline, or
+// RAYSPLATS_SIMD=sse). Chosen once per process.
+const char* gaussian_group_test_path();
+
+}  // namespace raysplats

@@ -1,0 +1,253 @@
+#include "gaussian_segment_tracer.h"
+
+#include <algorithm>
+
+namespace raysplats {
+
+// The helpers are inline, as they were when the tracer was one class body with the path integrator: GCC inlines
+// them into the tracing loops below.
+inline void GaussianSegmentTracer::init_rayhit(RTCRayHit& rh, const Ray& ray, float tnear) const {
+    rh.ray.org_x = ray.o.x;
+    rh.ray.org_y = ray.o.y;
+    rh.ray.org_z = ray.o.z;
+    rh.ray.dir_x = ray.d.x;
+    rh.ray.dir_y = ray.d.y;
+    rh.ray.dir_z = ray.d.z;
+    rh.ray.tnear = tnear;
+    rh.ray.tfar = ray.tmax;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+}
+
+inline void GaussianSegmentTracer::record_mesh(Segment& seg, float t, unsigned geom, unsigned inst, unsigned prim,
+                                               float u, float v) const {
+    seg.mesh = true;
+    seg.top_geom = inst != RTC_INVALID_GEOMETRY_ID ? inst : geom;
+    seg.prim = prim;
+    seg.t = t;
+    seg.end = t;
+    seg.u = u;
+    seg.v = v;
+}
+
+// The Gaussian set of a hit on top-level instance `geom` (a chunk); turns the chunk-local primID into the
+// set's primitive index.
+inline const GaussianSet& GaussianSegmentTracer::gaussian_of(unsigned geom, std::uint32_t& prim) const {
+    const TopGeometry& tg = s_.top[geom];
+    prim += tg.offset;
+    return *s_.gaussians[tg.index];
+}
+
+// Composites one Gaussian onto the segment (front to back).
+inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim,
+                                             float t, float alpha, Sampler& rng, Counters& c) const {
+    const GaussianSet& set = gaussian_of(geom, prim);
+    glm::vec3 color = set.color(prim, ray.o);
+    if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+    const float t_before = seg.transmittance;
+    seg.radiance += t_before * alpha * color;
+    seg.transmittance = t_before * (1.0f - alpha);
+    if (t_before > 0.5f && seg.transmittance <= 0.5f) {
+        seg.depth = t;
+        glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
+        seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+    }
+    ++seg.gaussians;
+    ++c.gaussian_hits;
+}
+
+inline void GaussianSegmentTracer::init_lane(LaneState& L) const {
+    L.gather.set_capacity(st_.gather_buffer_size);
+    L.transmittance_threshold = st_.transmittance_threshold;
+}
+
+// Moves one traversal's statistics from the lane to the counters.
+inline void GaussianSegmentTracer::count_traversal(LaneState& L, Counters& c) {
+    ++c.traced;
+    c.candidates += L.candidates;
+    c.group_candidates += L.group_candidates;
+    L.candidates = 0;
+    L.group_candidates = 0;
+}
+
+// Consumes one sorted gathering pass of a ray that ended at `end` (the ray's tmax or a speculative end):
+// composites the buffer; true when the segment is complete, false when the ray must be re-traced from its last
+// hit (the buffer overflowed) or from `end` (the speculative end came too early).
+inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, const Ray& ray, float end, float tfar,
+                                                  unsigned geom, unsigned inst, unsigned prim, float u, float v,
+                                                  Sampler& rng, Counters& c) const {
+    count_traversal(L, c);
+    for (int i = 0; i < L.gather.size(); ++i) {
+        const GatherHit& h = L.gather[i];
+        if (h.t > tfar) break;  // behind the mesh hit found later in the traversal
+        composite(seg, ray, h.geom, h.prim, h.t, h.alpha, rng, c);
+        if (seg.transmittance < st_.transmittance_threshold) {
+            seg.terminated = true;
+            seg.end = h.t;
+            return true;
+        }
+    }
+    if (geom != RTC_INVALID_GEOMETRY_ID) {
+        record_mesh(seg, tfar, geom, inst, prim, u, v);
+        if (seg.transmittance > 0.5f) {
+            seg.depth = seg.t;
+            seg.depth_at_mesh = true;
+        }
+        return true;
+    }
+    // Every Gaussian up to `end` was gathered unless the buffer overflowed or was cut (and compositing did not
+    // terminate within it: the cut came early by a rounding of GatherBuffer::prefix_).
+    if (L.gather.truncated()) {
+        L.gather.continue_behind_last();
+        return false;
+    }
+    if (!(end < ray.tmax)) return true;
+    // The speculative end came too early: go on behind everything this pass could see.
+    L.gather.continue_behind(end);
+    return false;
+}
+
+// Sorted gathering of a ray with single-ray queries, from the state left by earlier passes.
+inline void GaussianSegmentTracer::trace_sorted_from(Segment& seg, LaneState& L, const Ray& ray, Sampler& rng,
+                                                     Counters& c) const {
+    TraceContext ctx(&L, TraceMode::Gather);
+    for (;;) {
+        RTCRayHit rh;
+        init_rayhit(rh, ray, L.gather.continues() ? L.gather.continuation_t() : ray.tmin);
+        L.gather.begin_pass(seg.transmittance);
+        rtcIntersect1(s_.scene, &ctx, &rh);
+        if (consume_gather(seg, L, ray, ray.tmax, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
+                           rh.hit.v, rng, c))
+            return;
+    }
+}
+
+inline Segment GaussianSegmentTracer::trace_sorted(const Ray& ray, Sampler& rng, Counters& c) const {
+    Segment seg;
+    LaneState L;
+    init_lane(L);
+    trace_sorted_from(seg, L, ray, rng, c);
+    return seg;
+}
+
+inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L, const Ray& ray, float tfar,
+                                                      unsigned geom, unsigned inst, unsigned prim, float u, float v,
+                                                      Sampler& rng, Counters& c) const {
+    count_traversal(L, c);
+    if (geom == RTC_INVALID_GEOMETRY_ID) return;
+    // Every top-level geometry is an instance (a mesh or a chunk of Gaussians).
+    if (s_.top[inst].kind == TopGeometry::Gaussians) {
+        // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
+        const GaussianSet& set = gaussian_of(inst, prim);
+        glm::vec3 color = set.color(prim, ray.o);
+        if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+        seg.radiance = color;
+        seg.transmittance = 0.0f;
+        seg.terminated = true;
+        seg.depth = tfar;
+        const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
+        seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+        ++seg.gaussians;
+        ++c.gaussian_hits;
+        return;
+    }
+    record_mesh(seg, tfar, geom, inst, prim, u, v);
+    seg.depth = seg.t;
+    seg.depth_at_mesh = true;
+}
+
+inline Segment GaussianSegmentTracer::trace_stochastic(const Ray& ray, Sampler& rng, Counters& c) const {
+    Segment seg;
+    LaneState L;
+    L.seed = rng.next_u32();
+    TraceContext ctx(&L, TraceMode::Stochastic);
+    RTCRayHit rh;
+    init_rayhit(rh, ray, ray.tmin);
+    rtcIntersect1(s_.scene, &ctx, &rh);
+    consume_stochastic(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u, rh.hit.v,
+                       rng, c);
+    return seg;
+}
+
+// First segments of up to 16 coherent camera rays with packet queries (rtcIntersect16): a Gaussian's data
+// is fetched once for every ray of the packet that reaches it. Sorted rays whose buffer overflows, or whose
+// speculative end came too early, go on together in the next packet query, from where each stopped.
+// Random numbers are drawn in the same order as on the single-ray path, so the image does not change.
+// `ends` (sorted mode): speculative segment ends (RenderSettings::speculative_ends), +inf for none. The first
+// query traverses only up to them; the segments are the same as without them (the same hits composited in the
+// same order).
+void GaussianSegmentTracer::trace_packet(const Ray* rays, const bool* active, const float* ends, Sampler* rngs,
+                                         Segment* segs, Counters& c) const {
+    LaneState lanes[16];
+    RTCRayHit16 rh;
+    alignas(64) int valid[16];
+    float end[16];  // where the first query stops
+    const bool sorted = st_.compositing == Compositing::Sorted;
+    for (int l = 0; l < 16; ++l) {
+        valid[l] = active[l] ? -1 : 0;
+        segs[l] = Segment{};
+        const Ray& r = rays[l];
+        init_lane(lanes[l]);
+        if (active[l] && !sorted) lanes[l].seed = rngs[l].next_u32();
+        rh.ray.org_x[l] = r.o.x;
+        rh.ray.org_y[l] = r.o.y;
+        rh.ray.org_z[l] = r.o.z;
+        rh.ray.dir_x[l] = r.d.x;
+        rh.ray.dir_y[l] = r.d.y;
+        rh.ray.dir_z[l] = r.d.z;
+        rh.ray.tnear[l] = r.tmin;
+        end[l] = std::min(r.tmax, ends[l]);
+        rh.ray.tfar[l] = end[l];
+        rh.ray.time[l] = 0.0f;
+        rh.ray.mask[l] = 0xffffffffu;
+        rh.ray.id[l] = unsigned(l);
+        rh.ray.flags[l] = 0;
+        rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+    }
+    TraceContext ctx(lanes, sorted ? TraceMode::Gather : TraceMode::Stochastic);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    rtcIntersect16(valid, s_.scene, &ctx, &rh);
+    if (!sorted) {
+        for (int l = 0; l < 16; ++l)
+            if (active[l])
+                consume_stochastic(segs[l], lanes[l], rays[l], rh.ray.tfar[l], rh.hit.geomID[l],
+                                   rh.hit.instID[0][l], rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l], c);
+        return;
+    }
+    std::uint32_t pending = 0;  // rays that go on
+    for (int l = 0; l < 16; ++l)
+        if (active[l] && !consume_gather(segs[l], lanes[l], rays[l], end[l], rh.ray.tfar[l], rh.hit.geomID[l],
+                                         rh.hit.instID[0][l], rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l],
+                                         c))
+            pending |= 1u << l;
+    while (pending) {
+        for (int l = 0; l < 16; ++l) {
+            valid[l] = (pending >> l) & 1u ? -1 : 0;
+            if (!valid[l]) continue;
+            lanes[l].gather.begin_pass(segs[l].transmittance);
+            rh.ray.tnear[l] = lanes[l].gather.continuation_t();
+            rh.ray.tfar[l] = rays[l].tmax;
+            rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, s_.scene, &ctx, &rh);
+        std::uint32_t next = 0;
+        for (int l = 0; l < 16; ++l)
+            if (((pending >> l) & 1u) &&
+                !consume_gather(segs[l], lanes[l], rays[l], rays[l].tmax, rh.ray.tfar[l], rh.hit.geomID[l],
+                                rh.hit.instID[0][l], rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l], rngs[l], c))
+                next |= 1u << l;
+        pending = next;
+    }
+}
+
+Segment GaussianSegmentTracer::trace(const Ray& ray, Sampler& rng, Counters& c) const {
+    return st_.compositing == Compositing::Sorted ? trace_sorted(ray, rng, c) : trace_stochastic(ray, rng, c);
+}
+
+}  // namespace raysplats

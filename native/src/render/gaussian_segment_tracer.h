@@ -1,0 +1,73 @@
+// The Gaussian segment tracer (internal; DESIGN §6): traces a ray to its closest opaque mesh hit and composites the
+// Gaussians in front of it, either sorted (gathered k at a time in exact (t, id) order by the intersect callback,
+// composited front to back, C += T a_i c_i, T *= 1 - a_i, re-traced from the k-th hit until the segment is done
+// or T < threshold) or stochastic (the nearest Gaussian accepted with probability alpha), for single rays and for
+// 16-wide packets of camera rays.
+#pragma once
+
+#include <cstdint>
+
+#include <embree3/rtcore.h>
+#include <glm/glm.hpp>
+
+#include "gaussian_callbacks.h"
+#include "ray.h"
+#include "raysplats/render/renderer.h"
+#include "render_math.h"
+#include "scene_impl.h"
+#include "shadow_visibility.h"
+
+namespace raysplats {
+
+// What a ray met up to its closest opaque mesh hit.
+struct Segment {
+    glm::vec3 radiance{0.0f};  // premultiplied Gaussian radiance
+    float transmittance = 1.0f;
+    bool terminated = false;   // T fell below the threshold (or a stochastic Gaussian was accepted)
+    bool mesh = false;
+    unsigned top_geom = RTC_INVALID_GEOMETRY_ID;
+    unsigned prim = 0;
+    float t = kInf, u = 0.0f, v = 0.0f;
+    float depth = kInf;        // first point where opacity reaches 0.5
+    glm::vec3 normal{0.0f};    // there; left 0 when that point is the mesh hit (the path integrator shades it)
+    bool depth_at_mesh = false;
+    float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
+    std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
+};
+
+class GaussianSegmentTracer {
+public:
+    // `shadow` gives the light visibility of Gaussian centres (RenderSettings::meshes_shadow_gaussians).
+    GaussianSegmentTracer(const Scene::Impl& scene, const RenderSettings& settings, const ShadowVisibility& shadow)
+        : s_(scene), st_(settings), shadow_(shadow) {}
+
+    // The segment of one ray, in the settings' compositing mode.
+    Segment trace(const Ray& ray, Sampler& rng, Counters& c) const;
+
+    // First segments of up to 16 coherent camera rays (lanes where `active` is set) with packet queries;
+    // `ends`: speculative segment ends in sorted mode (+inf for none). See the definition.
+    void trace_packet(const Ray* rays, const bool* active, const float* ends, Sampler* rngs, Segment* segs,
+                      Counters& c) const;
+
+private:
+    void init_rayhit(RTCRayHit& rh, const Ray& ray, float tnear) const;
+    void record_mesh(Segment& seg, float t, unsigned geom, unsigned inst, unsigned prim, float u, float v) const;
+    const GaussianSet& gaussian_of(unsigned geom, std::uint32_t& prim) const;
+    void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
+                   Sampler& rng, Counters& c) const;
+    void init_lane(LaneState& L) const;
+    static void count_traversal(LaneState& L, Counters& c);
+    bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float end, float tfar, unsigned geom,
+                        unsigned inst, unsigned prim, float u, float v, Sampler& rng, Counters& c) const;
+    void trace_sorted_from(Segment& seg, LaneState& L, const Ray& ray, Sampler& rng, Counters& c) const;
+    Segment trace_sorted(const Ray& ray, Sampler& rng, Counters& c) const;
+    void consume_stochastic(Segment& seg, LaneState& L, const Ray& ray, float tfar, unsigned geom, unsigned inst,
+                            unsigned prim, float u, float v, Sampler& rng, Counters& c) const;
+    Segment trace_stochastic(const Ray& ray, Sampler& rng, Counters& c) const;
+
+    const Scene::Impl& s_;
+    const RenderSettings& st_;
+    const ShadowVisibility& shadow_;
+};
+
+}  // namespace raysplats

@@ -1,0 +1,51 @@
+// The path integrator (internal; DESIGN §6): follows one camera path through Gaussian segments and mesh bounces.
+// Each segment comes from the Gaussian segment tracer; a mesh hit is shaded with next-event estimation whose shadow
+// rays carry Gaussian transmittance x mesh occlusion, and the path goes on by sampling the BSDF.
+#pragma once
+
+#include <cstdint>
+
+#include <glm/glm.hpp>
+
+#include "gaussian_segment_tracer.h"
+#include "light_sampling.h"
+#include "ray.h"
+#include "raysplats/render/renderer.h"
+#include "render_math.h"
+#include "scene_impl.h"
+#include "shadow_visibility.h"
+
+namespace raysplats {
+
+// A mesh hit, interpolated.
+struct Surface {
+    glm::vec3 p, ng, ns;  // ng, ns: outward (front-face) normals, world
+    glm::vec2 uv{0.0f};
+    std::uint32_t material = 0;
+};
+
+class PathIntegrator {
+public:
+    PathIntegrator(const Scene::Impl& scene, const RenderSettings& settings, const GaussianSegmentTracer& tracer,
+                   const ShadowVisibility& shadow)
+        : s_(scene), st_(settings), tracer_(tracer), shadow_(shadow),
+          world_(glm::vec3(scene.world.color[0], scene.world.color[1], scene.world.color[2]) * scene.world.strength) {}
+
+    // One path from a camera ray: its radiance, and the coverage, depth and normal of the primary segment.
+    // `first`: the camera segment when it was already traced (GaussianSegmentTracer::trace_packet).
+    SampleRecord path(Ray ray, Sampler& rng, Counters& c, const Segment* first = nullptr) const;
+
+private:
+    Surface surface(const Segment& seg, const Ray& ray) const;
+    int nearest_light_hit(const Ray& ray, LightHit& hit) const;
+    Segment trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf, const glm::vec3& beta,
+                              glm::vec3& radiance, Sampler& rng, Counters& c) const;
+
+    const Scene::Impl& s_;
+    const RenderSettings& st_;
+    const GaussianSegmentTracer& tracer_;
+    const ShadowVisibility& shadow_;
+    glm::vec3 world_;
+};
+
+}  // namespace raysplats

@@ -1,0 +1,25 @@
+// The ray every tracer of the renderer takes, and the traversal statistics they count (internal).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+#include <glm/glm.hpp>
+
+namespace raysplats {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// The segment [tmin, tmax] of the ray o + t d (world space; d as the camera or the BSDF made it).
+struct Ray {
+    glm::vec3 o, d;
+    float tmin, tmax;
+};
+
+// Per tile, summed into Film::stats: traversals, Gaussians composited, and the Gaussian / group tests the callbacks
+// made (LaneState::candidates, LaneState::group_candidates).
+struct Counters {
+    std::uint64_t traced = 0, gaussian_hits = 0, candidates = 0, group_candidates = 0;
+};
+
+}  // namespace raysplats

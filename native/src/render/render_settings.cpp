@@ -1,0 +1,94 @@
+// RenderSettings (raysplats/render/render_settings.h): validation and the table of setting names.
+#include "raysplats/render/render_settings.h"
+
+#include <cmath>
+#include <string>
+
+#include "raysplats/errors.h"
+
+namespace raysplats {
+
+void RenderSettings::validate() const {
+    auto require = [](bool ok, const std::string& problem) {
+        if (!ok) throw InvalidArgument("render settings: " + problem);
+    };
+    require(width > 0 && height > 0, "image size must be at least 1 x 1 (got " + std::to_string(width) + " x " +
+                                         std::to_string(height) + ")");
+    require(width <= 65536 && height <= 65536 && std::int64_t(width) * height <= (std::int64_t(1) << 28),
+            "image size " + std::to_string(width) + " x " + std::to_string(height) + " is too large (max 2^28 pixels)");
+    require(samples >= 1 && samples <= (1 << 20), "samples per pixel must be in 1 .. 1048576 (got " + std::to_string(samples) + ")");
+    require(max_bounces >= 0 && max_bounces <= 1024, "max bounces must be in 0 .. 1024 (got " + std::to_string(max_bounces) + ")");
+    require(std::isfinite(transmittance_threshold) && transmittance_threshold >= 0.0f && transmittance_threshold < 1.0f,
+            "transmittance threshold must be in [0, 1)");
+    require(gather_buffer_size >= 1 && gather_buffer_size <= 128,
+            "gather buffer size must be in 1 .. 128 (got " + std::to_string(gather_buffer_size) + ")");
+    require(std::isfinite(filter_width) && filter_width >= 0.01f && filter_width <= 10.0f,
+            "filter width must be in 0.01 .. 10 pixels (got " + std::to_string(filter_width) + ")");
+    require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
+}
+
+const NameTable<Compositing>& compositing_names() {
+    static const NameTable<Compositing> names{
+        "compositing",
+        {{"SORTED", Compositing::Sorted, "Gaussians composited in exact depth order (the reference)"},
+         {"STOCHASTIC", Compositing::Stochastic,
+          "each Gaussian accepted with probability alpha: faster per sample, converges to the sorted image"}}};
+    return names;
+}
+
+const NameTable<GaussianMode>& gaussian_mode_names() {
+    static const NameTable<GaussianMode> names{
+        "Gaussian mode",
+        {{"FLAT", GaussianMode::Flat, "a flat disk evaluated where the ray meets its plane"},
+         {"VOLUMETRIC", GaussianMode::Volumetric, "an ellipsoid (uses the stored thickness)"}}};
+    return names;
+}
+
+const NameTable<PixelFilter>& pixel_filter_names() {
+    static const NameTable<PixelFilter> names{
+        "pixel filter",
+        {{"BOX", PixelFilter::Box, "uniform over the filter width (width 1: the pixel's square)"},
+         {"GAUSSIAN", PixelFilter::Gaussian, "Gaussian, sigma = width / 4"},
+         {"BLACKMAN_HARRIS", PixelFilter::BlackmanHarris, "Blackman-Harris window over twice the width (Cycles' default)"}}};
+    return names;
+}
+
+const ParameterTable<RenderSettings>& render_setting_parameters() {
+    using namespace parameter_setters;
+    using T = ParameterType;
+    using S = RenderSettings;
+    static const ParameterTable<RenderSettings> table{
+        "render setting",
+        {{"width", T::Integer, "image width in pixels", &member<&S::width>, {}},
+         {"height", T::Integer, "image height in pixels", &member<&S::height>, {}},
+         {"samples", T::Integer, "samples per pixel", &member<&S::samples>, {}},
+         {"max_bounces", T::Integer, "reflections and refractions followed per path (0: direct light only)",
+          &member<&S::max_bounces>, {}},
+         {"seed", T::Integer, "seed of the sampling pattern (0 .. 2^32 - 1)", &member<&S::seed>, {}},
+         {"compositing", T::Name, "how Gaussians along a ray are combined", &named<&S::compositing, &compositing_names>,
+          compositing_names().names()},
+         {"transmittance_threshold", T::Real, "stop compositing once the transmittance is below this, in [0, 1)",
+          &member<&S::transmittance_threshold>, {}},
+         {"gaussian_mode", T::Name, "geometry the Gaussians are traced as",
+          &named<&S::gaussian_mode, &gaussian_mode_names>, gaussian_mode_names().names()},
+         {"meshes_shadow_gaussians", T::Bool, "lights' visibility from each Gaussian's centre darkens it",
+          &member<&S::meshes_shadow_gaussians>, {}},
+         {"tile_size", T::Integer, "edge of the square tiles rendered in parallel, in pixels", &member<&S::tile_size>, {}},
+         {"gather_buffer_size", T::Integer, "k of the per-ray k-nearest Gaussian buffer (any k gives the same image)",
+          &member<&S::gather_buffer_size>, {}},
+         {"jitter", T::Bool, "samples spread by the pixel filter (false: through the pixel centre)", &member<&S::jitter>, {}},
+         {"pixel_filter", T::Name, "shape of the pixel filter the samples are drawn from",
+          &named<&S::pixel_filter, &pixel_filter_names>, pixel_filter_names().names()},
+         {"filter_width", T::Real, "width of the pixel filter in pixels (0.01 .. 10)", &member<&S::filter_width>, {}},
+         {"transparent_background", T::Bool, "escaping camera rays show nothing (false: the world)",
+          &member<&S::transparent_background>, {}},
+         {"caustics_reflective", T::Bool, "diffuse paths continue through glossy reflections (Cycles' Caustics)",
+          &member<&S::caustics_reflective>, {}},
+         {"caustics_refractive", T::Bool, "diffuse paths continue through refraction (Cycles' Caustics)",
+          &member<&S::caustics_refractive>, {}},
+         {"speculative_ends", T::Bool, "sorted camera rays first traverse up to their neighbours' ends (same image)",
+          &member<&S::speculative_ends>, {}}}};
+    return table;
+}
+
+}  // namespace raysplats
