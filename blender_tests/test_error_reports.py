@@ -4,6 +4,8 @@
 # folder, a setting the renderer rejects) keeps its plain message and prints no traceback.
 import contextlib
 import io
+import sys
+import types
 import unittest
 from unittest import mock
 
@@ -11,6 +13,7 @@ import bpy
 
 import mesh_export_testing as mt
 import splat_testing as st
+import raysplats
 from raysplats import errors, gaussian_mesh, material_reader
 from raysplats.engine import RaySplatsRenderEngine, final, viewport
 
@@ -184,3 +187,67 @@ class Classification(unittest.TestCase):
         self.assertFalse(errors.is_user_error(errors.InternalError("invariant")))
         self.assertFalse(errors.is_user_error(KeyError("x")))
         self.assertFalse(errors.is_user_error(RuntimeError("bpy_struct: item.attr = val")))
+
+
+class ViewportFailures(unittest.TestCase):
+    def test_a_scene_that_cannot_be_built_is_built_again_only_after_a_change(self):
+        st.reset_render_scene(64, 48, 4)
+        engine = types.SimpleNamespace(viewport_state=viewport.ViewportState())
+        context = types.SimpleNamespace(region=types.SimpleNamespace(width=64, height=48))
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        with mock.patch.object(viewport.sync, "SceneSync", side_effect=ValueError("NaN vertex in 'Splats'")) as build:
+            with self.assertRaisesRegex(ValueError, "NaN vertex"):
+                viewport.view_draw(engine, context, depsgraph)
+            for _ in range(3):  # redraws: the failure was reported once; no build at every redraw
+                viewport.view_draw(engine, context, depsgraph)
+            self.assertEqual(build.call_count, 1)
+            viewport.view_update(engine, context, depsgraph)  # the user changes the scene: try again
+            with self.assertRaisesRegex(ValueError, "NaN vertex"):
+                viewport.view_draw(engine, context, depsgraph)
+            self.assertEqual(build.call_count, 2)
+
+    def test_drawing_that_fails_restores_blenders_gpu_state(self):
+        calls = []
+        gpu = types.ModuleType("gpu")
+        gpu.state = types.SimpleNamespace(blend_set=lambda mode: calls.append(("blend", mode)))
+        presets = types.ModuleType("gpu_extras.presets")
+
+        def draw_texture_2d(*args):
+            raise RuntimeError("GPUTexture freed")
+
+        presets.draw_texture_2d = draw_texture_2d
+        engine = types.SimpleNamespace(bind_display_space_shader=lambda scene: calls.append(("bind",)),
+                                       unbind_display_space_shader=lambda: calls.append(("unbind",)))
+        region = types.SimpleNamespace(width=64, height=48)
+        with mock.patch.dict(sys.modules, {"gpu": gpu, "gpu_extras": types.ModuleType("gpu_extras"),
+                                           "gpu_extras.presets": presets}), \
+                self.assertRaisesRegex(RuntimeError, "GPUTexture freed"):
+            viewport.draw_image(engine, None, object(), region)
+        self.assertEqual(calls, [("blend", "ALPHA_PREMULT"), ("bind",), ("unbind",), ("blend", "NONE")])
+
+
+class Registration(unittest.TestCase):
+    def registered(self):
+        """Whether each visible part of the add-on is in Blender: its scene settings, import operator, engine."""
+        try:
+            bpy.ops.import_scene.gaussian_splats.get_rna_type()
+            operator = True
+        except KeyError:
+            operator = False
+        engines = {engine.bl_idname for engine in bpy.types.RenderEngine.__subclasses__() if engine.is_registered}
+        return hasattr(bpy.types.Scene, "raysplats"), operator, "RAYSPLATS" in engines
+
+    def test_a_failed_registration_leaves_blender_as_it_was(self):
+        self.assertEqual(self.registered(), (True, True, True))
+        raysplats.unregister()
+        try:
+            self.assertEqual(self.registered(), (False, False, False))
+            # A late module fails (e.g. a class name another add-on took): every module before it is taken back.
+            with mock.patch.object(raysplats.splat_ui, "register", side_effect=ValueError("register_class(...): "
+                                                                                      "already registered")), \
+                    self.assertRaisesRegex(ValueError, "already registered"):
+                raysplats.register()
+            self.assertEqual(self.registered(), (False, False, False))
+        finally:
+            raysplats.register()
+        self.assertEqual(self.registered(), (True, True, True))

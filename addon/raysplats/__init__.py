@@ -34,8 +34,20 @@ _modules = (properties, io_import, io_export, io_mesh_export, native_splats, spl
 
 
 def register():
-    for module in _modules:
-        module.register()
+    # All or nothing: a module that fails to register (a clash with another add-on's names, a newer Blender's API)
+    # takes back the modules registered before it, so Blender is left as it was and enabling again can work.
+    registered = []
+    try:
+        for module in _modules:
+            module.register()
+            registered.append(module)
+    except BaseException:
+        for module in reversed(registered):
+            try:
+                module.unregister()
+            except Exception as error:  # the first failure is the one to report
+                print(f"RaySplats: while undoing a failed registration, {module.__name__}: {error}")
+        raise
 
 
 def unregister():

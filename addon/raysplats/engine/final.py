@@ -70,14 +70,17 @@ def render_final(engine, depsgraph):
                 shown_samples, shown_at = film["samples"], time.perf_counter()
                 last_render["partial_results"].append((shown_at - started, shown_samples))
         film = job.result()
+        # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
+        print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
+              f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''}, "
+              f"{stats.splats:,} splats, {stats.triangles:,} triangles")
+        passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
-        engine.end_result(result, cancel=True)  # no half-written result left open in Blender
+        # Any failure (a pass Blender refuses, an error in the loop): the render thread stops now rather than when
+        # the traceback lets the job go, and no half-written result is left open in Blender.
+        job.cancel()
+        engine.end_result(result, cancel=True)
         raise
-    # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
-    print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
-          f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''}, "
-          f"{stats.splats:,} splats, {stats.triangles:,} triangles")
-    passes.write_passes(result.layers[0], film, rows, cols)
     engine.end_result(result)
     last_render.update(samples=film["samples"], cancelled=film["cancelled"])
     engine.update_progress(1.0)
