@@ -238,6 +238,8 @@ PYBIND11_MODULE(_native, m) {
           "sh_degree. Raises FileFormatError like read_splats for a file refused at its header.");
     m.def("import_memory_bytes", &raysplats::import_memory_bytes, "count"_a, "sh_degree"_a, "vertices_per_polygon"_a,
           "Estimated peak bytes of importing count Gaussians as polygons (cloud, polygons, the mesh and its undo copy).");
+    m.def("compact_import_memory_bytes", &raysplats::compact_import_memory_bytes, "count"_a, "sh_degree"_a,
+          "Estimated peak bytes of importing count Gaussians as a compact splat object (one point per Gaussian).");
     m.def("available_memory_bytes", &raysplats::available_memory_bytes,
           "Bytes that can be allocated without swapping (MemAvailable, within the cgroup limit); 0 if unknown.");
     m.def("write_splats", &write_splats, "path"_a, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
