@@ -86,8 +86,16 @@ scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_pe
 scene.raysplats.samples = 1
 camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
 scene.collection.objects.link(camera)
-camera.location = (0.0, -3.0, 1.6)
-camera.rotation_euler = (1.45, 0.0, 0.3)
+# As examples/benchmark_engine.py: inside the first showroom (its median splat), looking along it.
+points = compact_splats.object_cloud(obj)["positions"] if compact_splats.is_compact_object(obj) else None
+if points is not None:
+    median = np.median(points[: count // (args.tiles ** 2)], axis=0)
+    del points
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    camera.location = world[:3, :3] @ median + world[:3, 3]
+camera.rotation_euler = (np.pi / 2, 0.0, -np.pi / 2)
+camera.data.sensor_fit, camera.data.sensor_width = "HORIZONTAL", 36.0
+camera.data.lens = 18.0 / np.tan(np.radians(30))
 scene.camera = camera
 scene.render.filepath = os.path.join(args.work, "render.png")
 t = time.perf_counter()
