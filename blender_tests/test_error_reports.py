@@ -87,13 +87,16 @@ class Operators(ReportTest):
             def read_splats(*args, **kwargs):
                 raise AssertionError("read_splats called although the memory check failed")
 
+        for representation, needed in (("POLYGONS", real.import_memory_bytes(22764, 0, 8)),
+                                       ("AUTO", real.compact_import_memory_bytes(22764, 0))):  # (the smaller form)
+            with mock.patch.object(io_import.native, "core", return_value=SmallMachine()):
+                message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats,
+                                                     filepath=st.data_file(SPLATS), representation=representation)
+            self.assert_user_error(message, stderr, "Import failed: ")
+            self.assertIn(f"not enough memory to import 22,764 Gaussians (needs about "
+                          f"{io_import.memory_size_text(needed)}, 1 MB available)", message)
+            self.assertEqual(len(bpy.data.meshes), 0)
         needed = real.import_memory_bytes(22764, 0, 8)
-        with mock.patch.object(io_import.native, "core", return_value=SmallMachine()):
-            message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats, filepath=st.data_file(SPLATS))
-        self.assert_user_error(message, stderr, "Import failed: ")
-        self.assertIn(f"not enough memory to import 22,764 Gaussians (needs about "
-                      f"{io_import.memory_size_text(needed)}, 1 MB available)", message)
-        self.assertEqual(len(bpy.data.meshes), 0)
         # A std::bad_alloc during the import (the estimate too low) is reported the same way, not as a bug.
         with mock.patch.object(gaussian_mesh, "fill_mesh", side_effect=MemoryError("std::bad_alloc")):
             message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats, filepath=st.data_file(SPLATS))

@@ -18,19 +18,19 @@ if "bpy" in locals():
 
     for _module in (native, blender_compat, errors, axes, progress, color_adjustment, properties,  # noqa: F821
                     mesh_fast_read, gaussian_mesh, material, material_reader, export_scope, modifier_checks,
-                    io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
+                    io_import, native_splats, compact_splats, io_export, io_mesh_export, splat_selection, splat_tools,
                     splat_transform, splat_handlers, splat_ui, engine):  # noqa: F821
         importlib.reload(_module)
 else:
     from . import (native, blender_compat, errors, axes, progress, color_adjustment, properties, mesh_fast_read,
-                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, io_export,
-                   io_mesh_export, native_splats, splat_selection, splat_tools, splat_transform, splat_handlers,
-                   splat_ui, engine)
+                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, native_splats,
+                   compact_splats, io_export, io_mesh_export, splat_selection, splat_tools, splat_transform,
+                   splat_handlers, splat_ui, engine)
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
-            splat_transform, splat_handlers, splat_ui, engine)
+_modules = (properties, io_import, io_export, io_mesh_export, native_splats, compact_splats, splat_selection,
+            splat_tools, splat_transform, splat_handlers, splat_ui, engine)
 
 
 def register():

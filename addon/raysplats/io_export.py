@@ -7,7 +7,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, errors, export_scope, gaussian_mesh, modifier_checks, native
+from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
 from .io_import import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text
 from .io_mesh_export import with_extension
 from .progress import StageProgress
@@ -18,7 +18,27 @@ class NothingToExport(ValueError):
 
 
 def gaussian_objects(context, limit_to=export_scope.DEFAULT_LIMIT_TO):
-    return [obj for obj in export_scope.objects_in_scope(context, limit_to) if gaussian_mesh.is_gaussian_object(obj)]
+    """The splat objects in scope: polygon Gaussian objects and compact splat objects."""
+    return [obj for obj in export_scope.objects_in_scope(context, limit_to)
+            if gaussian_mesh.is_gaussian_object(obj) or compact_splats.is_compact_object(obj)]
+
+
+def _object_up_axis(obj):
+    if gaussian_mesh.is_gaussian_object(obj):
+        return obj.raysplats.up_axis
+    return obj.get(native_splats.UP_AXIS_PROPERTY, "-Y")
+
+
+def _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers):
+    """One object's Gaussians mapped by mesh_to_output (its own coordinates -> the file's), with recovery stats."""
+    if gaussian_mesh.is_gaussian_object(obj):
+        return gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
+    cloud = compact_splats.evaluated_cloud(obj, depsgraph, apply_modifiers)
+    if cloud is None:
+        return dict(compact_splats.empty_cloud(0), stats={})
+    part = compact_splats.transformed_cloud(cloud, mesh_to_output)
+    part["stats"] = {}
+    return part
 
 
 def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUTO"):
@@ -28,9 +48,9 @@ def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUT
     depsgraph = context.evaluated_depsgraph_get()
     parts, stats = [], {}
     for obj in objects:
-        axis = obj.raysplats.up_axis if up_axis == "AUTO" else up_axis
+        axis = _object_up_axis(obj) if up_axis == "AUTO" else up_axis
         mesh_to_output = axes.mesh_to_file(obj, axis)
-        part = gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
+        part = _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
         for key, value in part["stats"].items():
             stats[key] = stats.get(key, 0) + value
         parts.append(part)

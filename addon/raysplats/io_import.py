@@ -59,37 +59,82 @@ def memory_size_text(n):
     return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.0f} MB"
 
 
-def check_import_memory(core, filepath, vertices_per_polygon, max_count=0):
-    """Raises NotEnoughMemory, before anything is read or allocated, when the Gaussians the file's header declares
-    (at most max_count of them) need more memory than the machine has available. Returns the estimate in bytes."""
+# Import representations (compact_splats.py): AUTO picks polygons for scenes they suit, compact points beyond.
+REPRESENTATION_ITEMS = (
+    ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
+                          "beyond"),
+    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 1 KB per "
+                                      "Gaussian, and about 5 KB in Edit Mode)"),
+    ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
+                                 "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
+)
+# Above this many Gaussians AUTO imports compact points: Blender's Edit Mode costs about 5 KB per polygon Gaussian
+# (issue 17: 9.3 GB and 13.8 s to enter it on 1.5 M), so bigger scenes are edited a region at a time.
+AUTO_POLYGON_LIMIT = 3_000_000
+
+
+def _not_enough(filepath, count, needed, available, advice):
+    return NotEnoughMemory(f"'{filepath}': not enough memory to import {count:,} Gaussians (needs about "
+                           f"{memory_size_text(needed)}, {memory_size_text(available)} available); {advice}")
+
+
+def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, representation="POLYGONS"):
+    """Which representation the import uses ("POLYGONS" or "POINTS"; AUTO resolved) and its memory estimate in bytes,
+    from the file's header alone. Raises NotEnoughMemory, before anything is read or allocated, when the Gaussians
+    the file declares (at most max_count of them) need more memory than the machine has available; AUTO falls back
+    to compact points when polygons would not fit. Returns (representation, bytes, note for the user or None)."""
     summary = core.probe_splat_file(filepath)
     count = min(summary["count"], max_count) if max_count > 0 else summary["count"]
-    needed = core.import_memory_bytes(count, summary["sh_degree"], vertices_per_polygon)
-    available = core.available_memory_bytes()
-    if available and needed > available:
-        raise NotEnoughMemory(f"'{filepath}': not enough memory to import {count:,} Gaussians (needs about "
-                              f"{memory_size_text(needed)}, {memory_size_text(available)} available); set Maximum Count or "
-                              f"Minimum Opacity to import fewer, or use fewer Polygon Vertices")
-    return needed
+    polygons = core.import_memory_bytes(count, summary["sh_degree"], vertices_per_polygon)
+    points = core.compact_import_memory_bytes(count, summary["sh_degree"])
+    available = core.available_memory_bytes() or float("inf")
+    limit = "set Maximum Count or Minimum Opacity to import fewer"
+    if representation == "POINTS":
+        if points > available:
+            raise _not_enough(filepath, count, points, available, limit)
+        return "POINTS", points, None
+    if representation == "AUTO" and (count > AUTO_POLYGON_LIMIT or polygons > available):
+        if points > available:
+            raise _not_enough(filepath, count, points, available, limit)
+        why = (f"as polygons they would need about {memory_size_text(polygons)} "
+               f"({memory_size_text(available)} available)" if polygons > available
+               else f"more than {AUTO_POLYGON_LIMIT:,} Gaussians are edited a region at a time")
+        return "POINTS", points, (f"imported as compact points ({why}); select a region in Edit Mode and use Edit "
+                                  "Selected as Polygons to edit it")
+    if polygons > available:
+        raise _not_enough(filepath, count, polygons, available,
+                          f"{limit}, use fewer Polygon Vertices, or import as Compact Points (about "
+                          f"{memory_size_text(points)})")
+    return "POLYGONS", polygons, None
 
 
 def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="AUTO",
-                           min_opacity=0.0, max_count=0):
-    """Imports a splat file as a new Gaussian object in the active collection.
+                           min_opacity=0.0, max_count=0, representation="POLYGONS"):
+    """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
+    (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons.
     Returns (object, warnings, stage timings). Raises on bad input or too little memory; nothing is added then
     (a failure at any step leaves no mesh or object behind)."""
+    from . import compact_splats  # (it imports this module)
+
     core = native.core()
     up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
     name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
-    needed = check_import_memory(core, filepath, vertices_per_polygon, max_count)
+    representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
+                                                       representation)
     obj = None
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
         try:
             progress.stage("read file")
             # The cloud is handed over, not kept: add_gaussian_object releases it once the polygons hold it.
-            obj, warnings = add_gaussian_object(
-                context, name, core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count),
-                vertices_per_polygon, radius, up_axis, filepath, progress)
+            cloud = core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count)
+            if representation == "POINTS":
+                warnings = list(cloud.get("warnings", ())) + ([note] if note else [])
+                progress.stage("fill Blender points")
+                obj = compact_splats.add_compact_object(context, name, cloud, up_axis, filepath)
+            else:
+                obj, warnings = add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_axis,
+                                                    filepath, progress)
+            del cloud
             obj.rotation_euler = (axes.object_rotation_x(up_axis), 0.0, 0.0)
         except BaseException as error:
             # Whatever step failed, nothing half-imported stays (add_gaussian_object cleans up its own failures).
@@ -153,11 +198,11 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
 
 
 def remove_gaussian_object(obj):
-    """Removes an object add_gaussian_object made, with its mesh (the import failed after it)."""
-    mesh = obj.data
+    """Removes an object an import made, with its mesh or point cloud (the import failed after it)."""
+    data = obj.data
     bpy.data.objects.remove(obj)
-    if mesh is not None and mesh.users == 0:
-        bpy.data.meshes.remove(mesh)
+    if data is not None and data.users == 0:
+        (bpy.data.meshes if isinstance(data, bpy.types.Mesh) else bpy.data.pointclouds).remove(data)
 
 
 def show_splat_colors_in_solid_views(context, obj):
@@ -214,6 +259,9 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
     up_axis: EnumProperty(
         name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="AUTO",
         description="Up direction in the file; the object is rotated (not baked) so that it stands upright")
+    representation: EnumProperty(
+        name="Import As", items=REPRESENTATION_ITEMS, default="AUTO",
+        description="How the Gaussians are held in Blender: editable polygons, or compact points for big scenes")
     min_opacity: FloatProperty(
         name="Minimum Opacity", default=0.0, min=0.0, max=1.0,
         description="Gaussians less opaque than this are not imported (0 imports all)")
@@ -237,7 +285,7 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        for heading, names in (("Polygons", ("vertices_per_polygon", "radius", "up_axis")),
+        for heading, names in (("Polygons", ("representation", "vertices_per_polygon", "radius", "up_axis")),
                                ("Limit", ("min_opacity", "max_count")),
                                ("Viewport", ("color_solid_views", "preview_samples"))):
             box = layout.box()
@@ -257,13 +305,17 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         imported = []
         for path in self.selected_paths():
             obj, warnings, _ = import_gaussian_splats(
-                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count)
+                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count,
+                self.representation)
             imported.append(obj)
-            if self.color_solid_views:
+            polygons = gaussian_mesh.is_gaussian_object(obj)
+            if self.color_solid_views and polygons:
                 show_splat_colors_in_solid_views(context, obj)
             for warning in warnings:
                 self.report({"WARNING"}, f"{os.path.basename(path)}: {warning}")
-            self.report({"INFO"}, f"Imported {len(obj.data.polygons):,} Gaussians from {os.path.basename(path)}")
+            count = len(obj.data.polygons) if polygons else len(getattr(obj.data, "points", obj.data.vertices))
+            self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}"
+                                  f"{'' if polygons else ' as compact points'}")
         for obj in imported:  # all of them selected, the last one active (import_gaussian_splats selects only its own)
             obj.select_set(True)
         raise_material_preview_samples(context.scene, self.preview_samples)

@@ -9,7 +9,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
+from . import axes, compact_splats, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
 from .progress import StageProgress
 
 MESH_EXTENSIONS = (".obj", ".ply", ".gltf", ".glb")
@@ -178,8 +178,10 @@ def export_mesh_file(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, 
     if not objects:
         raise NothingToExport(f"Nothing to export: no objects are {export_scope.describe(limit_to)}")
     gaussian_objects = [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
+    # Compact splat objects are points, not surfaces: they export through File > Export > Gaussian Splats (or as
+    # polygons after Object > Convert > RaySplats Gaussians).
     mesh_objects = [obj for obj in objects if include_meshes and obj.type in MESH_LIKE_TYPES
-                    and not gaussian_mesh.is_gaussian_object(obj)]
+                    and not gaussian_mesh.is_gaussian_object(obj) and not compact_splats.is_compact_object(obj)]
     if not gaussian_objects and not mesh_objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects or meshes are "
                               f"{export_scope.describe(limit_to)}")

@@ -12,6 +12,7 @@
 #include "conversions.h"
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
+#include "raysplats/gaussian_transform.h"
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
 #include "raysplats/splat_io.h"
@@ -155,6 +156,17 @@ py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const I
     return to_numpy(std::move(reversed), {faces});
 }
 
+py::dict transform_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                             const FloatArray& opacities, const FloatArray& sh, const DoubleArray& matrix) {
+    require_shape(matrix, "matrix", {4, 4});
+    raysplats::GaussianCloud cloud = cloud_from_arrays(positions, rotations, scales, opacities, sh);
+    {
+        py::gil_scoped_release release;
+        cloud = raysplats::transform_gaussians(cloud, matrix.data());
+    }
+    return cloud_to_dict(std::move(cloud));
+}
+
 py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& corner_vertices,
                            const IntArray& face_corner_start, const IntArray& face_corner_count,
                            int vertices_per_polygon, float radius, const DoubleArray& mesh_to_output,
@@ -226,6 +238,8 @@ PYBIND11_MODULE(_native, m) {
           "sh_degree. Raises FileFormatError like read_splats for a file refused at its header.");
     m.def("import_memory_bytes", &raysplats::import_memory_bytes, "count"_a, "sh_degree"_a, "vertices_per_polygon"_a,
           "Estimated peak bytes of importing count Gaussians as polygons (cloud, polygons, the mesh and its undo copy).");
+    m.def("compact_import_memory_bytes", &raysplats::compact_import_memory_bytes, "count"_a, "sh_degree"_a,
+          "Estimated peak bytes of importing count Gaussians as a compact splat object (one point per Gaussian).");
     m.def("available_memory_bytes", &raysplats::available_memory_bytes,
           "Bytes that can be allocated without swapping (MemAvailable, within the cgroup limit); 0 if unknown.");
     m.def("write_splats", &write_splats, "path"_a, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
@@ -235,6 +249,10 @@ PYBIND11_MODULE(_native, m) {
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "
           "face attributes (the Gaussian's rest values, opacity, rho_i) and corner colours/UVs (DESIGN §5); "
           "invisible_skipped counts the Gaussians with opacity below 1/255, which get no face.");
+    m.def("transform_gaussians", &transform_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
+          "matrix"_a,
+          "The Gaussians mapped by an affine 4x4 matrix exactly (centres, covariances A Σ Aᵀ, SH turned by the "
+          "matrix's rotation); the identity returns them unchanged.");
     m.def("recover_gaussians", &recover_gaussians, "vertex_positions"_a, "corner_vertices"_a, "face_corner_start"_a,
           "face_corner_count"_a, "vertices_per_polygon"_a, "radius"_a, "mesh_to_output"_a, "opacity"_a = py::none(),
           "thickness"_a = py::none(), "polygon_radius"_a = py::none(), "sh_local"_a = py::none(),

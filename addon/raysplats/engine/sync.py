@@ -4,7 +4,7 @@
 import bpy
 import numpy as np
 
-from .. import blender_compat, color_adjustment, gaussian_mesh, mesh_fast_read, modifier_checks, native
+from .. import blender_compat, color_adjustment, compact_splats, gaussian_mesh, mesh_fast_read, modifier_checks, native
 from ..material_reader import input_value
 from .materials import MaterialTable
 
@@ -143,7 +143,20 @@ class SceneSync:
         self.spare_sources = {}  # original object -> an older _CloudSource, whose arrays the next read reuses
         self.faces_recovered = 0  # by the last update() (diagnostics: an edit of a few splats recovers only them)
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
+        self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
         self._build(depsgraph)
+
+    @staticmethod
+    def _compact_cloud(obj):
+        """The Gaussians of an evaluated compact splat object in its own frame (its points' attributes; modifiers
+        move the centres), or None when it has no points. In Edit Mode the evaluated mesh wraps the edit BMesh
+        without filling its arrays: to_mesh() fills a copy."""
+        if obj.original.mode == "EDIT":
+            try:
+                return compact_splats.object_cloud(obj, obj.to_mesh())
+            finally:
+                obj.to_mesh_clear()
+        return compact_splats.object_cloud(obj)
 
     def _warn_once(self, message):
         if message not in self._seen_warnings:
@@ -244,6 +257,17 @@ class SceneSync:
                     if uid is not None:
                         self.clouds[uid] = (index, len(cloud["opacities"]))
                         self._keep_source(uid, source, cloud)
+            elif compact_splats.is_compact_object(obj):
+                for message in modifier_checks.compact_warnings(obj.original, for_render=not self.interactive):
+                    self._warn_once(message)
+                cloud = self._compact_cloud(obj)
+                if cloud is not None:
+                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"],
+                                                       np.array(matrix, dtype=np.float32))
+                    stats.splats += len(cloud["opacities"])
+                    if uid is not None:
+                        self.compact[uid] = (index, len(cloud["opacities"]))
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
                 arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
@@ -330,6 +354,19 @@ class SceneSync:
                     self.render_scene.set_gaussians_matrix(self.clouds[uid][0], matrix)
                 elif not self._update_cloud(uid, data, matrix, depsgraph):
                     return "rebuild"
+                result = "updated"
+            elif uid in self.compact:
+                index, count = self.compact[uid]
+                if update.is_updated_geometry:
+                    cloud = self._compact_cloud(data)
+                    if cloud is None:
+                        return "rebuild"
+                    self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"], matrix)
+                    self.stats.splats += len(cloud["opacities"]) - count
+                    self.compact[uid] = (index, len(cloud["opacities"]))
+                else:
+                    self.render_scene.set_gaussians_matrix(index, matrix)
                 result = "updated"
             elif uid in self.meshes:
                 index, arrays = self.meshes[uid]
