@@ -154,13 +154,27 @@ def edit_region_as_polygons(context, obj, mask=None, vertices_per_polygon=8, rad
     region, warnings = add_gaussian_object(context, f"{obj.name} region", region_cloud, vertices_per_polygon, radius,
                                            up_axis, obj.raysplats.source_file)
     try:
-        region.matrix_world = obj.matrix_world.copy()
+        _copy_placement(obj, region)
         region[REGION_OF_PROPERTY] = obj.name
         _replace_points(obj, rest)
     except BaseException:
         remove_gaussian_object(region)
         raise
     return region, warnings
+
+
+# The transform channels an object's placement is evaluated from. Copied one by one: assigning matrix_world instead
+# decomposes it, and the depsgraph's recomposition then differs from the source's matrix in the last bits.
+_PLACEMENT_CHANNELS = ("rotation_mode", "location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
+                       "scale", "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale")
+
+
+def _copy_placement(source, target):
+    target.parent = source.parent
+    target.matrix_parent_inverse = source.matrix_parent_inverse.copy()
+    for channel in _PLACEMENT_CHANNELS:
+        value = getattr(source, channel)
+        setattr(target, channel, value if isinstance(value, str) else tuple(value))
 
 
 def region_target(region):
@@ -185,9 +199,11 @@ def merge_region_back(context, region, target=None):
     depsgraph = context.evaluated_depsgraph_get()
     target_matrix = np.array(target.matrix_world, dtype=np.float64)
     region_matrix = np.array(region.matrix_world, dtype=np.float64)
-    # The same placement maps by the exact identity (an inverse of Blender's float matrix would not be exact).
-    region_to_target = np.eye(4) if np.array_equal(region_matrix, target_matrix) else \
-        np.linalg.inv(target_matrix) @ region_matrix
+    # The same placement (to Blender's float precision) maps by the exact identity: the unedited polygons then give
+    # back their stored Gaussians bit for bit (an inverse of Blender's float matrix would not be exact).
+    same_place = np.allclose(region_matrix, target_matrix, rtol=0.0,
+                             atol=4 * np.finfo(np.float32).eps * max(1.0, float(np.abs(target_matrix).max())))
+    region_to_target = np.eye(4) if same_place else np.linalg.inv(target_matrix) @ region_matrix
     part = gaussian_mesh.recover_object_gaussians(native.core(), region, depsgraph, region_to_target)
     current = object_cloud(target) or empty_cloud(part["sh_degree"])
     _replace_points(target, _concatenate(current, part))
