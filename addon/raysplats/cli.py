@@ -82,8 +82,9 @@ def _parser():
         sub.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
         sub.add_argument("--vertices-per-polygon", type=int, default=8, help="K for splat inputs (default 8)")
         sub.add_argument("--radius", type=float, default=3.0, help="rho for splat inputs (default 3)")
-        sub.add_argument("--up-axis", default="AUTO", choices=("AUTO", "-Y", "Y", "Z"),
-                         help="up axis of splat inputs (default: by format)")
+        sub.add_argument("--up-axis", default="DETECT", choices=("DETECT", "AUTO", "-Y", "Y", "Z", "-Z", "X", "-X"),
+                         help="up axis of splat inputs (default DETECT: found from the data, else by format; "
+                              "AUTO: by format)")
         return sub
 
     common(commands.add_parser("import", help="splat files -> .blend"))

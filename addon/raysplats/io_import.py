@@ -1,11 +1,12 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz): one mesh object, one polygon per Gaussian.
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.glb/.gltf): one mesh object, one polygon per Gaussian (a glTF
+# file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from . import axes, blender_compat, errors, gaussian_mesh, material, native
+from . import axes, blender_compat, errors, gaussian_mesh, io_gltf, material, native
 from .progress import StageProgress
 
 
@@ -73,24 +74,41 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0):
     return needed
 
 
-def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="AUTO",
-                           min_opacity=0.0, max_count=0):
-    """Imports a splat file as a new Gaussian object in the active collection.
+def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="DETECT",
+                           min_opacity=0.0, max_count=0, gltf_meshes=True):
+    """Imports a splat file as a new Gaussian object in the active collection; for a glTF file with
+    `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the format's
+    convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
     Returns (object, warnings, stage timings). Raises on bad input or too little memory; nothing is added then
     (a failure at any step leaves no mesh or object behind)."""
     core = native.core()
-    up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
+    splat_format = splat_format_of(filepath)
     name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
     needed = check_import_memory(core, filepath, vertices_per_polygon, max_count)
     obj = None
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
         try:
             progress.stage("read file")
+            # Held in a list so that add_gaussian_object gets the only reference (holder.pop()) and can release it.
+            holder = [core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count)]
+            estimate = None
+            if axes.detection_wanted(up_axis, splat_format):
+                cloud = holder[0]
+                estimate = core.estimate_up_axis(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                 cloud["opacities"])
+                del cloud
+            resolved = axes.resolve_import_up_axis(up_axis, splat_format, estimate)
+            if estimate is not None:
+                print(f"RaySplats: {os.path.basename(filepath)}: up axis {resolved} ("
+                      f"{'found from the data' if estimate['decided'] else 'no clear ground in the data: convention'}; "
+                      f"best {estimate['axis']}, margin {estimate['margin']:.2f})")
             # The cloud is handed over, not kept: add_gaussian_object releases it once the polygons hold it.
-            obj, warnings = add_gaussian_object(
-                context, name, core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count),
-                vertices_per_polygon, radius, up_axis, filepath, progress)
-            obj.rotation_euler = (axes.object_rotation_x(up_axis), 0.0, 0.0)
+            obj, warnings = add_gaussian_object(context, name, holder.pop(), vertices_per_polygon, radius, resolved,
+                                                filepath, progress)
+            obj.rotation_euler = axes.object_rotation_euler(resolved)
+            if gltf_meshes and splat_format is not None and splat_format["name"] == "gltf":
+                io_gltf.import_gltf_meshes(context, filepath)
+                context.view_layer.objects.active = obj
         except BaseException as error:
             # Whatever step failed, nothing half-imported stays (add_gaussian_object cleans up its own failures).
             if obj is not None:
@@ -212,8 +230,11 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         name="Polygon Radius", default=3.0, min=0.5, max=6.0,
         description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")
     up_axis: EnumProperty(
-        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="AUTO",
+        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="DETECT",
         description="Up direction in the file; the object is rotated (not baked) so that it stands upright")
+    gltf_meshes: BoolProperty(
+        name="glTF Meshes", default=True,
+        description="For .glb/.gltf files: also import the file's meshes (not its splats) with Blender's glTF importer")
     min_opacity: FloatProperty(
         name="Minimum Opacity", default=0.0, min=0.0, max=1.0,
         description="Gaussians less opaque than this are not imported (0 imports all)")
@@ -239,6 +260,7 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         layout.use_property_decorate = False
         for heading, names in (("Polygons", ("vertices_per_polygon", "radius", "up_axis")),
                                ("Limit", ("min_opacity", "max_count")),
+                               ("glTF", ("gltf_meshes",)),
                                ("Viewport", ("color_solid_views", "preview_samples"))):
             box = layout.box()
             box.label(text=heading)
@@ -257,13 +279,15 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         imported = []
         for path in self.selected_paths():
             obj, warnings, _ = import_gaussian_splats(
-                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count)
+                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count,
+                self.gltf_meshes)
             imported.append(obj)
             if self.color_solid_views:
                 show_splat_colors_in_solid_views(context, obj)
             for warning in warnings:
                 self.report({"WARNING"}, f"{os.path.basename(path)}: {warning}")
-            self.report({"INFO"}, f"Imported {len(obj.data.polygons):,} Gaussians from {os.path.basename(path)}")
+            self.report({"INFO"}, f"Imported {len(obj.data.polygons):,} Gaussians from {os.path.basename(path)} "
+                                  f"(up axis {obj.raysplats.up_axis})")
         for obj in imported:  # all of them selected, the last one active (import_gaussian_splats selects only its own)
             obj.select_set(True)
         raise_material_preview_samples(context.scene, self.preview_samples)
