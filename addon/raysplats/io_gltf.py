@@ -6,7 +6,7 @@ import re
 
 import bpy
 
-from . import native
+from . import blender_compat, native
 
 
 class GltfMeshImportFailed(OSError):
@@ -26,6 +26,7 @@ def import_gltf_meshes(context, filepath):
     contents = native.core().gltf_contents(filepath)
     if contents["other_primitives"] == 0:
         return []
+    blender_compat.prepare_gltf_importer()
     before = set(bpy.data.objects)
     try:
         result = bpy.ops.import_scene.gltf(filepath=filepath)
