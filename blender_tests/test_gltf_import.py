@@ -86,6 +86,15 @@ class GltfImport(unittest.TestCase):
         self.assertNotIn("internal error", message)
         self.assertEqual(len(bpy.data.objects), objects, "nothing imported")
 
+    def test_splat_export_points_to_the_mesh_export_for_gltf(self):
+        st.import_file(DONUT, max_count=500)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("splats.glb"))
+        self.assertIn("File > Export > RaySplats Mesh", str(raised.exception))
+        self.assertFalse(os.path.exists(st.tmp_file("splats.glb")))
+        self.assertNotIn(".glb", io_import.splat_file_browser_filter(writable_only=True))
+        self.assertIn(".glb", io_import.splat_file_browser_filter())
+
 
 class AutomaticUpAxis(unittest.TestCase):
     def setUp(self):

@@ -34,8 +34,9 @@ import bpy
 # Format names and extensions come from the add-on (which takes the splat formats from the core); it is
 # imported only once ensure_addon() has registered it.
 def _splat_formats():
+    """The formats a splat file can be converted to (the core writes them)."""
     from raysplats import io_import
-    return tuple(f["name"] for f in io_import.splat_formats())
+    return tuple(f["name"] for f in io_import.writable_splat_formats())
 
 
 def _splat_extensions():

@@ -23,20 +23,26 @@ def splat_format_of(filepath):
     return next((f for f in splat_formats() if extension in f["extensions"]), None)
 
 
-def splat_extensions():
-    return tuple(extension for f in splat_formats() for extension in f["extensions"])
+def writable_splat_formats():
+    """The entries of splat_formats() the core also writes (glTF splats are read here, written by the mesh export)."""
+    return [f for f in splat_formats() if f.get("writable", True)]
 
 
-def splat_file_browser_filter():
-    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz"."""
-    return ";".join("*" + extension for extension in splat_extensions())
+def splat_extensions(writable_only=False):
+    formats = writable_splat_formats() if writable_only else splat_formats()
+    return tuple(extension for f in formats for extension in f["extensions"])
 
 
-def open_splat_file_browser(operator, helper, context, event):
+def splat_file_browser_filter(writable_only=False):
+    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;…"."""
+    return ";".join("*" + extension for extension in splat_extensions(writable_only))
+
+
+def open_splat_file_browser(operator, helper, context, event, writable_only=False):
     """The invoke() of a splat import/export operator: the file browser (ImportHelper's or ExportHelper's)
-    filtered to the core's formats; without the native module, the error instead."""
+    filtered to the core's formats (those it writes, for an export); without the native module, the error instead."""
     try:
-        operator.filter_glob = splat_file_browser_filter()
+        operator.filter_glob = splat_file_browser_filter(writable_only)
     except native.NativeModuleMissing as error:
         operator.report({"ERROR"}, str(error))
         return {"CANCELLED"}

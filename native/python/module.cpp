@@ -32,7 +32,7 @@ py::list splat_formats() {
         py::list extensions;
         for (const char* e : f.extensions) extensions.append(e);
         out.append(py::dict("name"_a = f.name, "extensions"_a = extensions, "description"_a = f.description,
-                            "up_axis"_a = f.up_axis, "up_axis_by_specification"_a = f.up_axis_by_specification));
+                            "up_axis"_a = f.up_axis, "up_axis_by_specification"_a = f.up_axis_by_specification, "writable"_a = f.writable));
     }
     return out;
 }
@@ -288,7 +288,7 @@ PYBIND11_MODULE(_native, m) {
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
           "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), up_axis_by_specification "
-          "(True when the format's specification fixes up, as glTF's +Y)}.");
+          "(True when the format's specification fixes up, as glTF's +Y), writable (False: read only)}.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

@@ -29,6 +29,8 @@ struct SplatFormatInfo {
     // as they are; false when the file only follows a habit of its producers, so the scene's data may tell better
     // (raysplats/up_axis.h).
     bool up_axis_by_specification = false;
+    // False for a format the core reads but does not write as a splat file (glTF: written by the mesh export).
+    bool writable = true;
 };
 const std::vector<SplatFormatInfo>& splat_formats();
 
