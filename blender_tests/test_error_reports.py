@@ -59,7 +59,7 @@ class Operators(ReportTest):
     def test_import_failure_after_the_mesh_is_filled_leaves_nothing_behind(self):
         # Before: a failure after fill_mesh (the material, the object, linking) left an orphan mesh and object.
         from raysplats import io_import
-        for target, name in ((io_import.material, "gaussian_material"), (io_import.axes, "object_rotation_x")):
+        for target, name in ((io_import.material, "gaussian_material"), (io_import.axes, "object_rotation_euler")):
             with self.subTest(failing=name):
                 st.reset_scene()
                 meshes, objects = len(bpy.data.meshes), len(bpy.data.objects)

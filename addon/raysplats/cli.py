@@ -34,8 +34,9 @@ import bpy
 # Format names and extensions come from the add-on (which takes the splat formats from the core); it is
 # imported only once ensure_addon() has registered it.
 def _splat_formats():
+    """The formats a splat file can be converted to (the core writes them)."""
     from raysplats import io_import
-    return tuple(f["name"] for f in io_import.splat_formats())
+    return tuple(f["name"] for f in io_import.writable_splat_formats())
 
 
 def _splat_extensions():
@@ -82,8 +83,9 @@ def _parser():
         sub.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
         sub.add_argument("--vertices-per-polygon", type=int, default=8, help="K for splat inputs (default 8)")
         sub.add_argument("--radius", type=float, default=3.0, help="rho for splat inputs (default 3)")
-        sub.add_argument("--up-axis", default="AUTO", choices=("AUTO", "-Y", "Y", "Z"),
-                         help="up axis of splat inputs (default: by format)")
+        sub.add_argument("--up-axis", default="DETECT", choices=("DETECT", "AUTO", "-Y", "Y", "Z", "-Z", "X", "-X"),
+                         help="up axis of splat inputs (default DETECT: found from the data, else by format; "
+                              "AUTO: by format)")
         return sub
 
     common(commands.add_parser("import", help="splat files -> .blend"))

@@ -8,7 +8,8 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
-from .io_import import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text
+from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_menu_text,
+                        writable_splat_formats)
 from .io_mesh_export import with_extension
 from .progress import StageProgress
 
@@ -75,8 +76,13 @@ def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMI
     extension.
     Returns (number of Gaussians written, recovery stats and "warnings" (messages), stage timings)."""
     extension = os.path.splitext(filepath)[1].lower()
-    if splat_format_of(filepath) is None:
-        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {', '.join(splat_extensions())}")
+    splat_format = splat_format_of(filepath)
+    if splat_format is None or not splat_format.get("writable", True):
+        known = ", ".join(splat_extensions(writable_only=True))
+        if splat_format is not None:  # glTF: the Gaussians go into a glTF file through the mesh export
+            raise ValueError(f"'{filepath}': {extension} splats are written by File > Export > RaySplats Mesh with "
+                             f"KHR_gaussian_splatting; this export writes {known}")
+        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {known}")
     objects = gaussian_objects(context, limit_to)
     if not objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects are {export_scope.describe(limit_to)}")
@@ -98,7 +104,7 @@ _format_items = []  # Blender needs the strings of dynamic enum items kept alive
 def splat_format_items(self, context):
     """The Format drop-down: one entry per format the core writes, labelled with its extension."""
     try:
-        formats = splat_formats()
+        formats = writable_splat_formats()
     except native.NativeModuleMissing:
         formats = []
     _format_items[:] = [(f["name"].upper(), f"{f['name'].upper()} ({f['extensions'][0]})", f["description"])
@@ -108,7 +114,7 @@ def splat_format_items(self, context):
 
 def format_extension(format_name):
     """The extension the core writes for a Format drop-down entry."""
-    return next(f["extensions"][0] for f in splat_formats() if f["name"].upper() == format_name)
+    return next(f["extensions"][0] for f in writable_splat_formats() if f["name"].upper() == format_name)
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
@@ -137,9 +143,9 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
     def invoke(self, context, event):
         current = splat_format_of(self.filepath) if self.filepath else None
-        if current is not None:
+        if current is not None and current.get("writable", True):
             self.export_format = current["name"].upper()
-        return open_splat_file_browser(self, ExportHelper, context, event)
+        return open_splat_file_browser(self, ExportHelper, context, event, writable_only=True)
 
     def draw(self, context):
         layout = self.layout
@@ -153,7 +159,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
     def check(self, context):
         # The extension follows the Format drop-down; True redraws the file browser.
-        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions())
+        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions(True))
         changed = filepath != self.filepath
         self.filepath = filepath
         return changed

@@ -1,11 +1,12 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz): one mesh object, one polygon per Gaussian.
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.glb/.gltf): one mesh object, one polygon per Gaussian (a glTF
+# file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from . import axes, blender_compat, errors, gaussian_mesh, material, native
+from . import axes, blender_compat, errors, gaussian_mesh, io_gltf, material, native
 from .progress import StageProgress
 
 
@@ -22,20 +23,26 @@ def splat_format_of(filepath):
     return next((f for f in splat_formats() if extension in f["extensions"]), None)
 
 
-def splat_extensions():
-    return tuple(extension for f in splat_formats() for extension in f["extensions"])
+def writable_splat_formats():
+    """The entries of splat_formats() the core also writes (glTF splats are read here, written by the mesh export)."""
+    return [f for f in splat_formats() if f.get("writable", True)]
 
 
-def splat_file_browser_filter():
-    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz"."""
-    return ";".join("*" + extension for extension in splat_extensions())
+def splat_extensions(writable_only=False):
+    formats = writable_splat_formats() if writable_only else splat_formats()
+    return tuple(extension for f in formats for extension in f["extensions"])
 
 
-def open_splat_file_browser(operator, helper, context, event):
+def splat_file_browser_filter(writable_only=False):
+    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;…"."""
+    return ";".join("*" + extension for extension in splat_extensions(writable_only))
+
+
+def open_splat_file_browser(operator, helper, context, event, writable_only=False):
     """The invoke() of a splat import/export operator: the file browser (ImportHelper's or ExportHelper's)
-    filtered to the core's formats; without the native module, the error instead."""
+    filtered to the core's formats (those it writes, for an export); without the native module, the error instead."""
     try:
-        operator.filter_glob = splat_file_browser_filter()
+        operator.filter_glob = splat_file_browser_filter(writable_only)
     except native.NativeModuleMissing as error:
         operator.report({"ERROR"}, str(error))
         return {"CANCELLED"}
@@ -108,16 +115,18 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, repre
     return "POLYGONS", polygons, None
 
 
-def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="AUTO",
-                           min_opacity=0.0, max_count=0, representation="POLYGONS"):
+def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="DETECT",
+                           min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS"):
     """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
-    (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons.
+    (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
+    file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
+    format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
     Returns (object, warnings, stage timings). Raises on bad input or too little memory; nothing is added then
     (a failure at any step leaves no mesh or object behind)."""
     from . import compact_splats  # (it imports this module)
 
     core = native.core()
-    up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
+    splat_format = splat_format_of(filepath)
     name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
     representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
                                                        representation)
@@ -125,17 +134,33 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
         try:
             progress.stage("read file")
+            # Held in a list so that add_gaussian_object gets the only reference (holder.pop()) and can release it.
+            holder = [core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count)]
+            estimate = None
+            if axes.detection_wanted(up_axis, splat_format):
+                cloud = holder[0]
+                estimate = core.estimate_up_axis(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                 cloud["opacities"])
+                del cloud
+            resolved = axes.resolve_import_up_axis(up_axis, splat_format, estimate)
+            if estimate is not None:
+                print(f"RaySplats: {os.path.basename(filepath)}: up axis {resolved} ("
+                      f"{'found from the data' if estimate['decided'] else 'no clear ground in the data: convention'}; "
+                      f"best {estimate['axis']}, margin {estimate['margin']:.2f})")
             # The cloud is handed over, not kept: add_gaussian_object releases it once the polygons hold it.
-            cloud = core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count)
             if representation == "POINTS":
+                cloud = holder.pop()
                 warnings = list(cloud.get("warnings", ())) + ([note] if note else [])
                 progress.stage("fill Blender points")
-                obj = compact_splats.add_compact_object(context, name, cloud, up_axis, filepath)
+                obj = compact_splats.add_compact_object(context, name, cloud, resolved, filepath)
+                del cloud
             else:
-                obj, warnings = add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_axis,
-                                                    filepath, progress)
-            del cloud
-            obj.rotation_euler = (axes.object_rotation_x(up_axis), 0.0, 0.0)
+                obj, warnings = add_gaussian_object(context, name, holder.pop(), vertices_per_polygon, radius,
+                                                    resolved, filepath, progress)
+            obj.rotation_euler = axes.object_rotation_euler(resolved)
+            if gltf_meshes and splat_format is not None and splat_format["name"] == "gltf":
+                io_gltf.import_gltf_meshes(context, filepath)
+                context.view_layer.objects.active = obj
         except BaseException as error:
             # Whatever step failed, nothing half-imported stays (add_gaussian_object cleans up its own failures).
             if obj is not None:
@@ -257,11 +282,14 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         name="Polygon Radius", default=3.0, min=0.5, max=6.0,
         description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")
     up_axis: EnumProperty(
-        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="AUTO",
+        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="DETECT",
         description="Up direction in the file; the object is rotated (not baked) so that it stands upright")
     representation: EnumProperty(
         name="Import As", items=REPRESENTATION_ITEMS, default="AUTO",
         description="How the Gaussians are held in Blender: editable polygons, or compact points for big scenes")
+    gltf_meshes: BoolProperty(
+        name="glTF Meshes", default=True,
+        description="For .glb/.gltf files: also import the file's meshes (not its splats) with Blender's glTF importer")
     min_opacity: FloatProperty(
         name="Minimum Opacity", default=0.0, min=0.0, max=1.0,
         description="Gaussians less opaque than this are not imported (0 imports all)")
@@ -287,6 +315,7 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         layout.use_property_decorate = False
         for heading, names in (("Polygons", ("representation", "vertices_per_polygon", "radius", "up_axis")),
                                ("Limit", ("min_opacity", "max_count")),
+                               ("glTF", ("gltf_meshes",)),
                                ("Viewport", ("color_solid_views", "preview_samples"))):
             box = layout.box()
             box.label(text=heading)
@@ -306,16 +335,21 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         for path in self.selected_paths():
             obj, warnings, _ = import_gaussian_splats(
                 context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count,
-                self.representation)
+                self.gltf_meshes, self.representation)
             imported.append(obj)
             polygons = gaussian_mesh.is_gaussian_object(obj)
             if self.color_solid_views and polygons:
                 show_splat_colors_in_solid_views(context, obj)
             for warning in warnings:
                 self.report({"WARNING"}, f"{os.path.basename(path)}: {warning}")
-            count = len(obj.data.polygons) if polygons else len(getattr(obj.data, "points", obj.data.vertices))
-            self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}"
-                                  f"{'' if polygons else ' as compact points'}")
+            if polygons:
+                count, up_axis, form = len(obj.data.polygons), obj.raysplats.up_axis, ""
+            else:
+                from .native_splats import UP_AXIS_PROPERTY
+                count = len(getattr(obj.data, "points", obj.data.vertices))
+                up_axis, form = obj.get(UP_AXIS_PROPERTY, "-Y"), " as compact points"
+            self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}{form} "
+                                  f"(up axis {up_axis})")
         for obj in imported:  # all of them selected, the last one active (import_gaussian_splats selects only its own)
             obj.select_set(True)
         raise_material_preview_samples(context.scene, self.preview_samples)

@@ -16,6 +16,7 @@
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
 #include "raysplats/splat_io.h"
+#include "raysplats/up_axis.h"
 
 namespace py = pybind11;
 using namespace pybind11::literals;
@@ -32,9 +33,25 @@ py::list splat_formats() {
         py::list extensions;
         for (const char* e : f.extensions) extensions.append(e);
         out.append(py::dict("name"_a = f.name, "extensions"_a = extensions, "description"_a = f.description,
-                            "up_axis"_a = f.up_axis));
+                            "up_axis"_a = f.up_axis, "up_axis_by_specification"_a = f.up_axis_by_specification, "writable"_a = f.writable));
     }
     return out;
+}
+
+py::dict estimate_up_axis(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                          const FloatArray& opacities) {
+    const std::size_t n = std::size_t(opacities.size());
+    raysplats::GaussianCloud cloud = cloud_from_arrays(positions, rotations, scales, opacities,
+                                                       FloatArray(std::vector<py::ssize_t>{py::ssize_t(n), 1, 3}));
+    raysplats::UpAxisEstimate e;
+    {
+        py::gil_scoped_release release;
+        e = raysplats::estimate_up_axis(cloud);
+    }
+    py::dict scores;
+    for (std::size_t k = 0; k < 6; ++k) scores[raysplats::UpAxisEstimate::kAxisNames[k]] = e.scores[k];
+    return py::dict("axis"_a = e.axis(), "decided"_a = e.decided, "margin"_a = e.margin, "scores"_a = scores,
+                    "flat_gaussians"_a = e.flat_gaussians);
 }
 
 py::dict read_splats(const std::string& path, float min_opacity, std::size_t max_count) {
@@ -227,7 +244,7 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
     m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz file. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
+          "Reads a .ply/.splat/.spz file, or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
           "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);
@@ -271,9 +288,25 @@ PYBIND11_MODULE(_native, m) {
           "corner_vertices"_a, "face_corner_start"_a, "face_corner_count"_a,
           "Faces (ascending uint32) with a corner on a vertex whose position differs bit for bit from "
           "previous_positions (the same mesh before an edit that kept its topology).");
+    m.def("estimate_up_axis", &estimate_up_axis, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
+          "Which way is up, from the Gaussians alone (raysplats/up_axis.h: the supporting plane of flat Gaussians): "
+          "dict of axis ('X', '-X', 'Y', '-Y', 'Z', '-Z'), decided (False: no clear supporting plane), margin "
+          "((best - second) / best), scores per axis, flat_gaussians.");
+    m.def("gltf_contents", [](const std::string& path) {
+              raysplats::GltfContents c;
+              {
+                  py::gil_scoped_release release;
+                  c = raysplats::gltf_contents(path);
+              }
+              return py::dict("splat_primitives"_a = c.splat_primitives, "other_primitives"_a = c.other_primitives,
+                              "splat_only_meshes"_a = c.splat_only_meshes);
+          }, "path"_a,
+          "What a glTF file holds: splat_primitives (KHR_gaussian_splatting), other_primitives, and the names of the "
+          "meshes that hold only splat primitives. Raises FileFormatError for a file that is not valid glTF.");
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
-          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format)}.");
+          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), up_axis_by_specification "
+          "(True when the format's specification fixes up, as glTF's +Y), writable (False: read only)}.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

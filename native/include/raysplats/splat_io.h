@@ -1,4 +1,5 @@
-// Reading and writing splat files: INRIA 3DGS .ply, antimatter15 .splat, Niantic .spz (DESIGN §4).
+// Reading and writing splat files: INRIA 3DGS .ply, antimatter15 .splat, Niantic .spz (DESIGN §4); reading the
+// KHR_gaussian_splatting primitives of glTF files (.glb, .gltf; written by mesh_export.h's glTF writer).
 // Every reader throws FileFormatError naming the file (and byte offset) on bad input; writers are atomic
 // (temporary file in the same folder, then rename), so a failed write never replaces a good file.
 #pragma once
@@ -11,7 +12,7 @@
 
 namespace raysplats {
 
-enum class SplatFormat { Ply, Splat, Spz };
+enum class SplatFormat { Ply, Splat, Spz, Gltf };
 
 // The splat formats the core reads and writes: the one list the add-on, its command line and the tools take
 // their format names, file extensions and import defaults from.
@@ -24,6 +25,12 @@ struct SplatFormatInfo {
     // core's COLMAP convention (x right, y down, z forward; SPZ's RUB is rotated on reading and writing). Which
     // way a scene is up is a property of the scene, not of its file format (DESIGN §4).
     const char* up_axis;
+    // True when the format's specification fixes which way is up (glTF: +Y up), so the file's own axes are taken
+    // as they are; false when the file only follows a habit of its producers, so the scene's data may tell better
+    // (raysplats/up_axis.h).
+    bool up_axis_by_specification = false;
+    // False for a format the core reads but does not write as a splat file (glTF: written by the mesh export).
+    bool writable = true;
 };
 const std::vector<SplatFormatInfo>& splat_formats();
 
@@ -41,8 +48,8 @@ struct ReadOptions {
     std::size_t max_count = 0;
 };
 
-// Reads any supported file; the format comes from the content (PLY magic, gzip or SPZ magic), falling back
-// to the extension for the headerless .splat. Quaternions come out normalised, scales linear, opacities
+// Reads any supported file; the format comes from the content (PLY magic, gzip or SPZ magic, glTF magic or a .gltf
+// extension), falling back to the extension for the headerless .splat. Quaternions come out normalised, scales linear, opacities
 // linear. Non-finite values are dropped or repaired and counted in `report`.
 GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
 
@@ -54,6 +61,23 @@ GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options
 // Niantic SPZ versions 2 and 3 (gzip) and 4 (zstd streams). SPZ stores RUB (x right, y up, z back); the cloud
 // comes out in the core's RDF like every reader's: positions, rotations and SH rotated 180° about x.
 GaussianCloud read_spz(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
+
+// glTF 2.0 (.glb, or .gltf with its buffers beside it) carrying KHR_gaussian_splatting (ratified text): every splat
+// primitive the default scene places, through its node's world transform, in one cloud (SH degree the highest of
+// them, missing bands zero), converted from glTF's frame (+Y up) to the core's RDF. Other primitives are ignored.
+// A file without splat primitives is refused with a message that points to Blender's glTF importer. Accessors are
+// bounds-checked against their buffers before anything is allocated (memory proportional to the file).
+GaussianCloud read_gltf_splats(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
+// The same from bytes in memory (a .glb, or a .gltf whose buffers are data: URIs); `name` names it in errors.
+GaussianCloud read_gltf_splats_from_memory(const std::uint8_t* data, std::size_t size, const std::string& name,
+                                           const ReadOptions& options = {}, LoadReport* report = nullptr);
+// What a glTF file holds besides splats, for an importer that hands the rest to a mesh importer: its splat and
+// other primitives, and the names of the meshes that hold only splat primitives.
+struct GltfContents {
+    std::size_t splat_primitives = 0, other_primitives = 0;
+    std::vector<std::string> splat_only_meshes;
+};
+GltfContents gltf_contents(const std::string& path);
 
 // What a splat file's header says, read without decoding its data (a few bytes; SPZ 2/3: the first 16 bytes of its
 // gzip stream): for checking, before an import, that there is memory for it. Throws FileFormatError like the

@@ -146,6 +146,7 @@ private:
 // Header-only probes of each format (splat_io.h: probe_splat_file), beside their readers.
 SplatFileSummary probe_ply(const FileBytes& f);
 SplatFileSummary probe_spz(const FileBytes& f);
+SplatFileSummary probe_gltf(const FileBytes& f);  // gltf_splat_format.cpp: parses the JSON and checks the accessors
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);

@@ -11,7 +11,9 @@ const std::vector<SplatFormatInfo>& splat_formats() {
     static const std::vector<SplatFormatInfo> formats{
         {SplatFormat::Ply, "ply", {".ply"}, "INRIA 3D Gaussian Splatting PLY", "-Y"},
         {SplatFormat::Splat, "splat", {".splat"}, "antimatter15 .splat (32-byte records, no higher SH bands)", "-Y"},
-        {SplatFormat::Spz, "spz", {".spz"}, "Niantic SPZ (compressed)", "-Y"}};
+        {SplatFormat::Spz, "spz", {".spz"}, "Niantic SPZ (compressed)", "-Y"},
+        // glTF is +Y up by specification; the reader converts it to the core's RDF like SPZ's RUB.
+        {SplatFormat::Gltf, "gltf", {".glb", ".gltf"}, "glTF 2.0 with KHR_gaussian_splatting (import only)", "-Y", true, false}};
     return formats;
 }
 
