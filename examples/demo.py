@@ -94,6 +94,17 @@ def main():
     bpy.ops.render.render(write_still=True)
     print(f"demo: rendered {render_path} with {scene.render.engine} in {time.perf_counter() - t_render:.1f} s")
 
+    # 3b. Relight: the same splats as lit surfaces (their captured light divided out) under a sun that turns round
+    #     them; two frames of that animation, at half the resolution to keep the demo quick.
+    if scene.render.engine == "RAYSPLATS":
+        sys.path.insert(0, HERE)
+        import relight_moving_sun
+        scene.render.resolution_percentage = 50
+        t_relight = time.perf_counter()
+        relight_moving_sun.relight_frame_pair(scene, obj, args.out_dir, frames=(1, 24))
+        print(f"demo: relit frame pair in {time.perf_counter() - t_relight:.1f} s")
+        scene.render.resolution_percentage = 100
+
     # 4. Export the edited scene back to splat formats (edits applied, file convention restored).
     for extension in (".ply", ".spz"):
         path = os.path.join(args.out_dir, "edited_" + os.path.splitext(args.scene)[0] + extension)
@@ -103,4 +114,5 @@ def main():
     print(f"demo: done in {time.perf_counter() - t0:.1f} s; outputs in {args.out_dir}")
 
 
-main()
+if __name__ == "__main__":
+    main()

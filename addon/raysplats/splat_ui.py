@@ -32,6 +32,7 @@ def _draw_settings(layout, obj):
     column.prop(settings, "sh_degree")
     layout.prop(settings, "source_file")
     layout.prop(settings, "up_axis")
+    layout.prop(settings, "gaussian_shading")
 
 
 def _draw_colors(layout, obj):
