@@ -94,10 +94,10 @@ glm::vec3 GaussianShader::albedo(const GaussianSet& set, std::uint32_t prim) con
 }
 
 float GaussianShader::shadow_bias(const GaussianSet& set, std::uint32_t prim) {
-    // row1 = axis_1 / sigma_1 (object space), so axis_1 sigma_1 = row1 / |row1|^2; A maps it to the world.
-    const glm::vec3& r = set.prims[prim].row1;
+    // row0 = axis_0 / sigma_0 (object space), so axis_0 sigma_0 = row0 / |row0|^2; A maps it to the world.
+    const glm::vec3& r = set.prims[prim].row0;
     const float len2 = glm::dot(r, r);
-    return len2 > 0.0f ? glm::length(set.linear * (r / len2)) : 0.0f;
+    return len2 > 0.0f ? kShadowBiasSigmas * glm::length(set.linear * (r / len2)) : 0.0f;
 }
 
 glm::vec3 GaussianShader::direct(const GaussianShadingPoint& sp, float bounce_pdf_scale, Sampler& rng,

@@ -57,6 +57,16 @@ struct GaussianShadingPoint {
 constexpr float kGreyWorldAlbedo = 0.5f;
 float grey_world_albedo_scale(const GaussianSet& set);
 
+// A real splat surface is several overlapping, semi-transparent Gaussians thick; a shadow ray that started at the
+// chosen Gaussian would be shadowed by the ones above it (its own surface). So shadow and bounce rays start this
+// many standard deviations (of the Gaussian's largest axis: its support radius) along their direction, skipping
+// what lies within the Gaussian's own footprint. donut_sh0 under a vertical sun, half of it under a mesh slab
+// (BAKED_SHADOWED / BAKED per covered pixel, blender_tests/test_relighting.py): starting at 1 sigma of the smaller
+// axis, 36 % of the pixels were in full shadow, 15 % unshadowed and 50 % in between (the lit half self-shadowed); at 3
+// sigmas of the largest, 34 %, 56 % and 10 %. Farther occluders' shadow edges stay exact (the ray is the same line);
+// contact shadows closer than this are lost.
+constexpr float kShadowBiasSigmas = 3.0f;
+
 class GaussianShader {
 public:
     // Resolves every set's shading (its own, or the scene's) and the albedo scales of lit sets (O(Gaussians) for
@@ -69,8 +79,8 @@ public:
 
     // Albedo of primitive `prim` of a LIT set (linear, in [0, 1]).
     glm::vec3 albedo(const GaussianSet& set, std::uint32_t prim) const;
-    // World extent of the smaller in-plane standard deviation of a primitive: where the shading point's shadow and
-    // bounce rays start.
+    // Where the shading point's shadow and bounce rays start: kShadowBiasSigmas world standard deviations of the
+    // Gaussian's largest axis.
     static float shadow_bias(const GaussianSet& set, std::uint32_t prim);
 
     // Light from the scene's lights leaving the shading point towards its ray's origin: the lit part
