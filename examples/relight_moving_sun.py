@@ -22,7 +22,7 @@ SWEEP_DEGREES = 120.0
 SUN_ELEVATION = 40.0
 
 
-def add_floor_and_moving_sun(scene, obj, frames, strength=3.0):
+def add_floor_and_moving_sun(scene, obj, frames, strength=2.5):
     """A floor plane under `obj` (a Gaussian object) and a sun keyframed to turn round it from frames[0] to
     frames[1]. Returns the sun object."""
     corners = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
