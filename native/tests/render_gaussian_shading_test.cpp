@@ -290,3 +290,31 @@ TEST(RenderGaussianShading, FurnaceEnergyNeverGrowsPastTheBoundWithBounces) {
     EXPECT_GT(means[1], means[0] + 0.01) << "the first bounce off the other plane adds light";
     EXPECT_LT(means.back() - means[1], 0.25 * 0.5 * 1.1);
 }
+
+// Lit splats are seen in mirrors as directly: a camera looking along -x at a perfect mirror tilted 45 degrees sees
+// the lit splat floor below it (out of the mirror's shadow) with the radiance rho / pi * S * cos 30 it has when seen
+// directly (metallic mirror of base colour 1: reflectance 1). Tolerance 2 %.
+TEST(RenderGaussianShading, LitSplatsAreSeenInMirrors) {
+    const GaussianCloud floor = splat_floor(3.0f, 0.0f, 0.5f);
+    Material mirror;
+    mirror.metallic = 1.0f;
+    mirror.roughness = 0.0f;
+    mirror.base_color = {1, 1, 1};
+    TestMesh glass = make_quad_z(-0.5f, 0.5f, -0.5f, 0.5f, 0.0f, 0);
+    // Normal (sin 135, 0, cos 135): facing the camera (+x) and the floor (-z).
+    glass.object_to_world = Matrix4::translation(0, 0, 2) * Matrix4::rotation(float(0.75 * kPi), 0, 1, 0);
+    Scene scene;
+    scene.set_world(black_world());
+    scene.add_material(mirror);
+    scene.add_mesh(glass.desc());
+    scene.add_gaussians(floor);
+    scene.add_light(sun(2.0f, Matrix4::rotation(float(kPi / 6), 0, 1, 0)));
+    Camera camera = ortho(5.0f, 0.0f, 2.0f, 0.4f);
+    camera.camera_to_world = Matrix4::translation(5.0f, 0.0f, 2.0f) * Matrix4::rotation(float(kPi / 2), 0, 1, 0);
+    RenderSettings st = settings(8, 8, 1, GaussianShading::Lit);
+    st.max_bounces = 2;
+    const Film film = render(scene, camera, st);
+    const double expected = kUniformAlbedo / kPi * 2.0 * std::cos(kPi / 6);
+    for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) ASSERT_NEAR(red(film, i, j), expected, 0.02 * expected) << i << "," << j;
+}
