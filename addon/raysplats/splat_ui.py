@@ -45,6 +45,7 @@ def _draw_settings(layout, obj):
     column.prop(settings, "sh_degree")
     layout.prop(settings, "source_file")
     layout.prop(settings, "up_axis")
+    layout.prop(settings, "gaussian_shading")
     target = compact_splats.region_target(obj)
     if target is not None:
         layout.operator(compact_splats.OBJECT_OT_raysplats_merge_region.bl_idname,

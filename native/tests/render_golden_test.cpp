@@ -161,6 +161,7 @@ struct GoldenCase {
     int gather_buffer_size = 96;
     bool speculative_ends = true;
     std::uint32_t interactive_chunk = 0;  // 0: a final-render scene
+    GaussianShading shading = GaussianShading::Baked;
 };
 
 const GoldenCase kCases[] = {
@@ -173,6 +174,11 @@ const GoldenCase kCases[] = {
     {"equirect_stochastic_volumetric", CameraType::Equirectangular, Compositing::Stochastic, GaussianMode::Volumetric},
     {"fisheye_sorted_flat_interactive", CameraType::FisheyeEquisolid, Compositing::Sorted, GaussianMode::Flat, false,
      false, 96, true, 1024},
+    // Relightable splats (issue 15), recorded when they were added.
+    {"perspective_sorted_flat_lit", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, false, false, 96,
+     true, 0, GaussianShading::Lit},
+    {"perspective_stochastic_volumetric_baked_shadowed", CameraType::Perspective, Compositing::Stochastic,
+     GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::BakedShadowed},
 };
 
 Film render_case(const GoldenScene& gs, const GoldenCase& gc) {
@@ -206,6 +212,7 @@ Film render_case(const GoldenScene& gs, const GoldenCase& gc) {
     s.transparent_background = gc.transparent_background;
     s.gather_buffer_size = gc.gather_buffer_size;
     s.speculative_ends = gc.speculative_ends;
+    s.gaussian_shading = gc.shading;
     return render(scene, cam, s);
 }
 

@@ -39,6 +39,12 @@ def _world(scene):
     return tuple(world.color), 1.0
 
 
+def _object_shading(obj):
+    """The object's own Gaussian shading for RenderScene.set_gaussian_shading (None: the scene's)."""
+    shading = obj.raysplats.gaussian_shading
+    return None if shading == "SCENE" else shading
+
+
 def triangle_mesh_arrays(mesh):
     """Vertices, triangles and per-triangle material slots of any mesh (loop triangles, bulk reads)."""
     mesh.calc_loop_triangles()
@@ -138,6 +144,7 @@ class SceneSync:
         self._warn = warn
         self._seen_warnings = set()
         self.clouds = {}  # original object (as_pointer) drawn once (not an instance) -> (native cloud index, splats)
+        self.shading = {}  # original object -> its Gaussian shading as last given to the native cloud
         self.interactive = interactive
         self.sources = {}  # interactive: original object -> _CloudSource of its cloud (absent: recover all next time)
         self.spare_sources = {}  # original object -> an older _CloudSource, whose arrays the next read reuses
@@ -254,7 +261,9 @@ class SceneSync:
                                                        cloud["opacities"], cloud["sh"],
                                                        np.array(matrix, dtype=np.float32))
                     stats.splats += len(cloud["opacities"])
+                    render_scene.set_gaussian_shading(index, _object_shading(obj))
                     if uid is not None:
+                        self.shading[uid] = _object_shading(obj)
                         self.clouds[uid] = (index, len(cloud["opacities"]))
                         self._keep_source(uid, source, cloud)
             elif compact_splats.is_compact_object(obj):
@@ -266,6 +275,7 @@ class SceneSync:
                                                        cloud["opacities"], cloud["sh"],
                                                        np.array(matrix, dtype=np.float32))
                     stats.splats += len(cloud["opacities"])
+                    render_scene.set_gaussian_shading(index, _object_shading(obj))
                     if uid is not None:
                         self.compact[uid] = (index, len(cloud["opacities"]))
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
@@ -332,6 +342,9 @@ class SceneSync:
             return True
         if not isinstance(data, bpy.types.Object):
             return False  # the scene, meshes (their objects report the change), ...
+        uid = data.original.as_pointer()
+        if uid in self.clouds and _object_shading(data) != self.shading.get(uid):
+            return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
         return data.type != "CAMERA"  # the view's camera is not part of the scene
@@ -350,7 +363,13 @@ class SceneSync:
             uid = data.original.as_pointer()
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.clouds:
-                if not update.is_updated_geometry:
+                shading = _object_shading(data)
+                if shading != self.shading.get(uid):
+                    self.render_scene.set_gaussian_shading(self.clouds[uid][0], shading)
+                    self.shading[uid] = shading
+                if not (update.is_updated_geometry or update.is_updated_transform):
+                    pass  # only the shading changed
+                elif not update.is_updated_geometry:
                     self.render_scene.set_gaussians_matrix(self.clouds[uid][0], matrix)
                 elif not self._update_cloud(uid, data, matrix, depsgraph):
                     return "rebuild"
@@ -425,7 +444,7 @@ def render_settings(scene, width, height, samples, seed_offset=0):
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
-        "meshes_shadow_gaussians": settings.meshes_shadow_gaussians,
+        "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,
         "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,
         "transparent_background": bool(scene.render.film_transparent),
         "pixel_filter": settings.pixel_filter, "filter_width": settings.filter_width,

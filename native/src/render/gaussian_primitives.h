@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <embree3/rtcore.h>
@@ -81,6 +82,7 @@ struct GaussianSet {
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: world points and view directions into the cloud's frame
     glm::mat3 normal_matrix{1.0f};        // A^-T: object-space plane normals to world
     bool flat = true;
+    std::optional<GaussianShading> shading;  // Scene::set_gaussian_shading: none follows the render settings
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
     // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
     // chunks are compact in space.

@@ -70,6 +70,8 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     const Segment s2 = trace_with_lights(far, nullptr, mis_pdf, beta * s1.transmittance, radiance, rng, c);
     Segment seg = s2;
     seg.radiance = s1.radiance + s1.transmittance * s2.radiance;
+    seg.shading = s1.shading;
+    seg.shading.append_behind(s2.shading, s1.transmittance, rng);
     seg.transmittance = s1.transmittance * s2.transmittance;
     if (s1.depth < kInf) {
         seg.depth = s1.depth;
@@ -95,6 +97,22 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
     bool last = false;           // the ray leaving the last vertex: emission only
     float mis_pdf = 0.0f;        // pdf of the BSDF sample that made `ray` (0: camera or delta)
     const Material default_material;
+    // After a bounce: the next ray is the last one (emission only) past max_bounces; false when Russian roulette
+    // ends the path.
+    auto next_vertex = [&](glm::vec3& weight) {
+        if (bounce >= st_.max_bounces) {
+            last = true;
+        } else {
+            ++bounce;
+            if (bounce > 3) {
+                // Russian roulette keeps long paths unbiased and cheap.
+                const float q = std::min(0.95f, std::max(weight.x, std::max(weight.y, weight.z)));
+                if (rng.next() >= q) return false;
+                weight /= q;
+            }
+        }
+        return true;
+    };
     for (;;) {
         Segment seg = trace_with_lights(ray, first, mis_pdf, beta, radiance, rng, c);
         first = nullptr;
@@ -109,17 +127,60 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
                 normal_at_mesh = seg.depth_at_mesh;
             }
         }
+        // LIT and BAKED_SHADOWED Gaussians (gaussian_shading.h): next-event estimation at the segment's shading
+        // point, and a diffuse bounce off it. Where a mesh lies behind semi-transparent Gaussians the path goes on
+        // either way: it bounces with probability p = a / (a + T) (a: the largest channel of the composited albedo)
+        // and the chosen branch's weight is divided by its probability.
+        bool gaussian_bounce = false;
+        Ray bounce_ray{};
+        float bounce_pdf = 0.0f;
+        glm::vec3 bounce_beta(0.0f);
+        if (!last && !seg.shading.empty()) {
+            const GaussianShadingPoint& sp = seg.shading;
+            float p_bounce = 0.0f;
+            if (sp.lit()) {
+                const float a = std::max(sp.albedo_sum.x, std::max(sp.albedo_sum.y, sp.albedo_sum.z));
+                p_bounce = seg.mesh && !seg.terminated ? a / (a + seg.transmittance) : 1.0f;
+            }
+            radiance += beta * tracer_.shader().direct(sp, p_bounce, rng, c);
+            if (p_bounce > 0.0f) {
+                if (p_bounce >= 1.0f || rng.next() < p_bounce) {
+                    gaussian_bounce = true;
+                    bounce_ray = tracer_.shader().bounce_ray(sp, rng, bounce_pdf);
+                    bounce_pdf *= p_bounce;
+                    bounce_beta = beta * sp.albedo_sum / p_bounce;
+                } else {
+                    beta /= 1.0f - p_bounce;
+                }
+            }
+        }
         if (seg.terminated) {
             if (camera_segment) alpha = 1.0f;
-            break;
-        }
-        if (!seg.mesh) {
+            if (!gaussian_bounce) break;
+        } else if (!seg.mesh) {
             if (camera_segment) {
                 alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
-                if (st_.transparent_background) break;
+                if (!st_.transparent_background) radiance += beta * seg.transmittance * world_;
+            } else {
+                radiance += beta * seg.transmittance * world_;
             }
-            radiance += beta * seg.transmittance * world_;
-            break;
+            if (!gaussian_bounce) break;
+        } else if (gaussian_bounce && camera_segment) {
+            alpha = 1.0f;  // the mesh behind covers the pixel
+            if (normal_at_mesh) {
+                const Surface sf = surface(seg, ray);
+                normal = glm::dot(sf.ng, ray.d) < 0.0f ? sf.ng : -sf.ng;
+                normal_at_mesh = false;
+            }
+        }
+        if (gaussian_bounce) {
+            camera_segment = false;
+            beta = bounce_beta;
+            after_diffuse = true;
+            mis_pdf = bounce_pdf;
+            if (!next_vertex(beta)) break;
+            ray = bounce_ray;
+            continue;
         }
         beta *= seg.transmittance;
         const Surface sf = surface(seg, ray);
@@ -181,17 +242,7 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
         if (!(beta.x > 0.0f || beta.y > 0.0f || beta.z > 0.0f)) break;
         after_diffuse = bs.diffuse;
         mis_pdf = bs.delta ? 0.0f : bs.pdf;
-        if (bounce >= st_.max_bounces) {
-            last = true;
-        } else {
-            ++bounce;
-            if (bounce > 3) {
-                // Russian roulette keeps long paths unbiased and cheap.
-                const float q = std::min(0.95f, std::max(beta.x, std::max(beta.y, beta.z)));
-                if (rng.next() >= q) break;
-                beta /= q;
-            }
-        }
+        if (!next_vertex(beta)) break;
         const bool below = glm::dot(bs.wi, ng) < 0.0f;
         ray = Ray{sf.p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
     }

@@ -44,6 +44,15 @@ const NameTable<GaussianMode>& gaussian_mode_names() {
     return names;
 }
 
+const NameTable<GaussianShading>& gaussian_shading_names() {
+    static const NameTable<GaussianShading> names{
+        "Gaussian shading",
+        {{"BAKED", GaussianShading::Baked, "the captured light, as trained"},
+         {"LIT", GaussianShading::Lit, "surface elements shaded by the scene's lights and world, with shadows"},
+         {"BAKED_SHADOWED", GaussianShading::BakedShadowed, "the captured light times the lights' visibility"}}};
+    return names;
+}
+
 const NameTable<PixelFilter>& pixel_filter_names() {
     static const NameTable<PixelFilter> names{
         "pixel filter",
@@ -73,6 +82,8 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
           &named<&S::gaussian_mode, &gaussian_mode_names>, gaussian_mode_names().names()},
          {"meshes_shadow_gaussians", T::Bool, "lights' visibility from each Gaussian's centre darkens it",
           &member<&S::meshes_shadow_gaussians>, {}},
+         {"gaussian_shading", T::Name, "how Gaussians' colours are produced (clouds without their own shading)",
+          &named<&S::gaussian_shading, &gaussian_shading_names>, gaussian_shading_names().names()},
          {"tile_size", T::Integer, "edge of the square tiles rendered in parallel, in pixels", &member<&S::tile_size>, {}},
          {"gather_buffer_size", T::Integer, "k of the per-ray k-nearest Gaussian buffer (any k gives the same image)",
           &member<&S::gather_buffer_size>, {}},

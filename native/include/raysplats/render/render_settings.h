@@ -35,6 +35,10 @@ struct RenderSettings {
     // Gaussians carry baked radiance; with this their colour is scaled by the lights' visibility from the
     // Gaussian centre (meshes only occlude), so meshes cast shadows on splats.
     bool meshes_shadow_gaussians = false;
+    // How Gaussians' colours are produced (BAKED: as trained; LIT: shaded by the lights and world; BAKED_SHADOWED:
+    // baked times the lights' visibility), for every Gaussian cloud without its own (Scene::set_gaussian_shading).
+    // meshes_shadow_gaussians applies to BAKED clouds only.
+    GaussianShading gaussian_shading = GaussianShading::Baked;
     int tile_size = 32;
     // k of the per-ray k-nearest buffer (1 .. 128). Any k gives the same image; it trades re-traces against
     // culling. The buffer is also cut where the transmittance falls below the threshold. 96 covers the ~34
@@ -69,6 +73,7 @@ struct RenderSettings {
 const NameTable<Compositing>& compositing_names();
 const NameTable<GaussianMode>& gaussian_mode_names();
 const NameTable<PixelFilter>& pixel_filter_names();
+const NameTable<GaussianShading>& gaussian_shading_names();
 
 // Every field of RenderSettings by name (the field's own name), with its type and what it sets.
 const ParameterTable<RenderSettings>& render_setting_parameters();
