@@ -21,7 +21,10 @@ namespace raysplats {
 
 // What a ray met up to its closest opaque mesh hit.
 struct Segment {
-    glm::vec3 radiance{0.0f};  // premultiplied Gaussian radiance
+    // Premultiplied Gaussian radiance sum T_i a_i c_i, in the settings' blend space: linear (BlendSpace::Linear), or
+    // display values as trained (BlendSpace::Display), which the path integrator takes to linear together with
+    // what lies behind: linear(radiance + transmittance * display(behind)).
+    glm::vec3 radiance{0.0f};
     float transmittance = 1.0f;
     bool terminated = false;   // T fell below the threshold (or a stochastic Gaussian was accepted)
     bool mesh = false;
@@ -53,6 +56,8 @@ private:
     void init_rayhit(RTCRayHit& rh, const Ray& ray, float tnear) const;
     void record_mesh(Segment& seg, float t, unsigned geom, unsigned inst, unsigned prim, float u, float v) const;
     const GaussianSet& gaussian_of(unsigned geom, std::uint32_t& prim) const;
+    glm::vec3 gaussian_color(const GaussianSet& set, std::uint32_t prim, const Ray& ray, Sampler& rng,
+                             Counters& c) const;
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const;
     void init_lane(LaneState& L) const;
