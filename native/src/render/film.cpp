@@ -168,8 +168,8 @@ void FilmTile::write_to(Film& film, int samples, bool transparent_background) co
                 for (int k = 0; k < 3; ++k) {
                     const float behind = sums[4 + k] / n;
                     out[k] += !gaussians  ? behind
-                              : t > 0.0f ? srgb_to_linear(sums[k] / n + t * linear_to_srgb(behind / t))
-                                         : srgb_to_linear(sums[k] / n);
+                              : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
+                                         : srgb_to_linear_tabulated(sums[k] / n);
                 }
             }
     }

@@ -244,7 +244,7 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
         const DisplayRun& r = runs.back();
         glm::vec3 l;
         for (int ch = 0; ch < 3; ++ch)
-            l[ch] = srgb_to_linear(r.display[ch] + r.transmittance * linear_to_srgb(radiance[ch]));
+            l[ch] = srgb_to_linear_tabulated(r.display[ch] + r.transmittance * linear_to_srgb(radiance[ch]));
         radiance = r.outer_radiance + r.outer_beta * l;
         runs.pop_back();
     }

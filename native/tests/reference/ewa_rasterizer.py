@@ -7,7 +7,9 @@ nothing of RaySplats. Its readers, too, are written from the file formats' speci
 
 Conventions (those of the reference rasterizer):
 - Covariance Sigma = R S S^T R^T, R from the unit quaternion (w, x, y, z), S = diag(scale).
-- Camera: OpenCV/COLMAP view space (x right, y down, z forward). Gaussians whose centre has z <= 0.2 are culled.
+- Camera: OpenCV/COLMAP view space (x right, y down, z forward). Gaussians whose centre has z <= near are culled
+  (0.2 in the reference, an absolute distance: scenes far smaller than that, such as the 0.17-wide donut, need a
+  smaller one).
 - 2D covariance Sigma' = J W Sigma W^T J^T with the perspective Jacobian J of (x, y, z) -> (fx x / z, fy y / z) at the
   centre, x/z and y/z clamped to 1.3 tan(fov / 2) (forward.cu computeCov2D), plus 0.3 px^2 on the diagonal (the
   low-pass "dilation").
@@ -132,13 +134,13 @@ def sh_to_display(sh, dirs):
     return np.maximum(result + 0.5, 0.0)
 
 
-def rasterize(splats, world_to_view, fx, fy, width, height, background=(0.0, 0.0, 0.0)):
+def rasterize(splats, world_to_view, fx, fy, width, height, background=(0.0, 0.0, 0.0), near=0.2):
     """The display-space image (height, width, 3) of `splats` seen by a pinhole camera. world_to_view: 4x4 matrix
     into OpenCV view space (x right, y down, z forward); principal point at the image centre."""
     W = np.asarray(world_to_view, np.float64)
     p_world = splats.positions.astype(np.float64)
     p_view = p_world @ W[:3, :3].T + W[:3, 3]
-    keep = p_view[:, 2] > 0.2
+    keep = p_view[:, 2] > near
     idx = np.nonzero(keep)[0]
     pv = p_view[idx]
     R = quaternion_to_matrix(splats.rotations[idx].astype(np.float64))
