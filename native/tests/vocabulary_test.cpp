@@ -42,6 +42,7 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "pixel_filter", std::string("BLACKMAN_HARRIS"));
     table.set(s, "filter_width", 1.5);
     table.set(s, "gaussian_shading", std::string("BAKED_SHADOWED"));
+    table.set(s, "blend_space", std::string("LINEAR"));
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -54,10 +55,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_EQ(s.pixel_filter, PixelFilter::BlackmanHarris);
     EXPECT_EQ(s.filter_width, 1.5f);
     EXPECT_EQ(s.gaussian_shading, GaussianShading::BakedShadowed);
+    EXPECT_EQ(s.blend_space, BlendSpace::Linear);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 19u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 20u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

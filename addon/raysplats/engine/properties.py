@@ -26,6 +26,15 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                ("STOCHASTIC", "Stochastic", "Each Gaussian accepted with probability alpha: no sorting, faster "
                                            "per sample, converges to the sorted image with more samples")),
         description="How Gaussians along a ray are combined")
+    blend_space: EnumProperty(
+        name="Blend Space", default="DISPLAY",
+        items=(("DISPLAY", "As Trained", "Gaussian colours composited as the scene was trained and as splat viewers "
+                                         "draw them (in sRGB display values), then made linear: with the Standard "
+                                         "view transform an unedited scene looks as in its viewer"),
+               ("LINEAR", "Linear", "Gaussian colours made linear, then composited: physically additive light, but "
+                                    "haze, floaters and soft edges come out brighter than trained (a grey halo)")),
+        description="Colour space in which Gaussians along a ray are composited; meshes, lights and the film are "
+                    "linear either way")
     transmittance_threshold: FloatProperty(
         name="Transmittance Threshold", default=1e-3, min=0.0, max=0.5, precision=4,
         description="Stop compositing Gaussians once less than this fraction of light gets through")

@@ -443,6 +443,7 @@ def render_settings(scene, width, height, samples, seed_offset=0):
     return {
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
+        "blend_space": settings.blend_space,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
         "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,
         "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,

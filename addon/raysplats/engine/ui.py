@@ -47,6 +47,7 @@ class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
         settings = context.scene.raysplats
         layout.prop(settings, "gaussian_mode")
         layout.prop(settings, "compositing")
+        layout.prop(settings, "blend_space")
         layout.prop(settings, "transmittance_threshold")
         layout.prop(settings, "gaussian_shading")
         row = layout.row()

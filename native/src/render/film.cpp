@@ -36,6 +36,9 @@ void write_atomically(const std::string& path, Write write) {
 
 namespace {
 
+// FilmTile::display_sums_ per pixel: D (3), T, T L_behind (3), samples.
+constexpr std::size_t kDisplaySums = 8;
+
 void radiance_and_coverage(const SampleRecord& s, float* out) {
     out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
 }
@@ -124,6 +127,16 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         info.from_sample(record, values);
         for (int k = 0; k < c; ++k) out[k] += values[k];
     }
+    if (record.display_blend) {
+        if (display_sums_.empty()) display_sums_.assign(kDisplaySums * std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_), 0.0f);
+        float* sums = display_sums_.data() + kDisplaySums * pixel;
+        for (int k = 0; k < 3; ++k) {
+            sums[k] += record.display_radiance[k];
+            sums[4 + k] += record.behind_radiance[k];
+        }
+        sums[3] += record.display_transmittance;
+        sums[7] += 1.0f;
+    }
 }
 
 void FilmTile::write_to(Film& film, int samples, bool transparent_background) const {
@@ -139,6 +152,25 @@ void FilmTile::write_to(Film& film, int samples, bool transparent_background) co
                 const float* v = values.data() + c * (std::size_t(y - y0_) * tile_width + std::size_t(x - x0_));
                 float* out = buffer.data() + c * (std::size_t(y) * film.width + x);
                 for (std::size_t k = 0; k < c; ++k) out[k] = mean ? v[k] * inv : v[k];
+            }
+    }
+    if (!display_sums_.empty()) {
+        // SampleRecord: rgb += linear(mean D + mean T display(mean(T L_behind) / mean T)). Where no sample met a
+        // Gaussian (D = 0, T = 1) that is mean L_behind, taken as it is.
+        FloatBuffer& rgba = film.rgba();
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const float* sums = display_sums_.data() + kDisplaySums * (std::size_t(y - y0_) * tile_width + std::size_t(x - x0_));
+                if (sums[7] == 0.0f) continue;
+                float* out = rgba.data() + 4 * (std::size_t(y) * film.width + x);
+                const float n = sums[7], t = sums[3] / n;
+                const bool gaussians = sums[3] != n || sums[0] != 0.0f || sums[1] != 0.0f || sums[2] != 0.0f;
+                for (int k = 0; k < 3; ++k) {
+                    const float behind = sums[4 + k] / n;
+                    out[k] += !gaussians  ? behind
+                              : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
+                                         : srgb_to_linear_tabulated(sums[k] / n);
+                }
             }
     }
     if (transparent_background) return;

@@ -133,8 +133,13 @@ std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
     for (auto& f : chunk_changed) f = !keep_order;
     prims.resize(n);
     const bool deg0 = c.sh_degree == 0;
-    if (deg0) linear_rgb.resize(3 * n);
-    else linear_rgb.clear();
+    if (deg0) {
+        linear_rgb.resize(3 * n);
+        display_rgb.resize(3 * n);
+    } else {
+        linear_rgb.clear();
+        display_rgb.clear();
+    }
     if (!keep_order) {
         cloud_index = morton_order(c);
         prim_index.resize(n);
@@ -171,11 +176,14 @@ std::vector<char> GaussianSet::prepare_rows(const std::vector<std::uint32_t>& ro
 
 void GaussianSet::store_linear_rgb(std::uint32_t j) {
     const float* dc = &cloud->sh[3 * std::size_t(cloud_index[j])];
-    for (int ch = 0; ch < 3; ++ch) linear_rgb[3 * j + ch] = srgb_to_linear(std::max(0.0f, sh_dc_to_display_single(dc[ch])));
+    for (int ch = 0; ch < 3; ++ch) {
+        display_rgb[3 * j + ch] = std::max(0.0f, sh_dc_to_display_single(dc[ch]));
+        linear_rgb[3 * j + ch] = srgb_to_linear(display_rgb[3 * j + ch]);
+    }
 }
 
-glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
-    if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
+glm::vec3 GaussianSet::display_color(std::uint32_t i, const glm::vec3& origin) const {
+    if (!display_rgb.empty()) return {display_rgb[3 * i], display_rgb[3 * i + 1], display_rgb[3 * i + 2]};
     // Reference 3DGS: the SH are evaluated in the direction from the camera (ray origin) to the centre, here in
     // the cloud's frame: A^-1 (A c + b - o) = c - A^-1 (o - b).
     glm::vec3 dir = prims[i].center - world_to_object_dir * (origin - translation);
@@ -183,6 +191,12 @@ glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
     const int k = cloud->coeffs_per_channel();
     const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(cloud_index[i]) * k * 3], dir.x, dir.y, dir.z);
+    return {rgb[0], rgb[1], rgb[2]};
+}
+
+glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
+    if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
+    const glm::vec3 rgb = display_color(i, origin);
     return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
 

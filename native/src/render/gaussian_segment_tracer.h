@@ -22,7 +22,10 @@ namespace raysplats {
 
 // What a ray met up to its closest opaque mesh hit.
 struct Segment {
-    glm::vec3 radiance{0.0f};  // premultiplied Gaussian radiance
+    // Premultiplied Gaussian radiance sum T_i a_i c_i, in the settings' blend space: linear (BlendSpace::Linear), or
+    // display values as trained (BlendSpace::Display), which the path integrator takes to linear together with
+    // what lies behind: linear(radiance + transmittance * display(behind)).
+    glm::vec3 radiance{0.0f};
     float transmittance = 1.0f;
     bool terminated = false;   // T fell below the threshold (or a stochastic Gaussian was accepted)
     bool mesh = false;
@@ -60,6 +63,8 @@ private:
     const GaussianSet& gaussian_of(unsigned geom, std::uint32_t& prim) const;
     void add_shaded(Segment& seg, const GaussianSet& set, std::uint32_t prim, GaussianShading shading, const Ray& ray,
                     float t, float weight, Sampler& rng) const;
+    glm::vec3 gaussian_color(const GaussianSet& set, std::uint32_t prim, const Ray& ray, Sampler& rng,
+                             Counters& c) const;
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const;
     void init_lane(LaneState& L) const;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "bsdf.h"
 
@@ -81,6 +82,28 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     return seg;
 }
 
+// DESIGN (BlendSpace::Display, DESIGN §4): a run of Gaussians along a ray (one segment) is composited in display
+// space as trained, D = sum T_i a_i c_i with display colours c_i, and meets what lies behind it, the linear radiance
+// L_behind (the mesh it ends on, shaded with its lights and bounces, or the world), in that space too:
+//     L = linear(D + T * display(L_behind)).
+// So an unedited splat scene looks as in a splat viewer (its background the world's colour), and a mesh seen through
+// haze is tinted as a viewer would tint it. Everything else stays linear light: mesh shading, lights, BSDFs, the
+// film. Reflections and refractions see the splats the same way (each run on a secondary ray is combined with its own
+// L_behind, innermost first: a perfect mirror shows the viewer's image), and shadow rays take only transmittance,
+// which is not a colour. An area light hit inside a run is added in linear light, weighted by the transmittance in
+// front of it, like the run's front (not composited into D). The camera ray's first run is not combined per sample:
+// the film combines the means of D, T and T L_behind over the pixel's samples (SampleRecord), so that stochastic
+// compositing, whose sample is one display colour or what lies behind, converges to the sorted image, and noise in
+// L_behind is averaged in linear light.
+namespace {
+struct DisplayRun {
+    glm::vec3 outer_radiance;  // the path's radiance before the run (at the enclosing run's level)
+    glm::vec3 outer_beta;      // the throughput at the run, relative to the enclosing run
+    glm::vec3 display;         // D
+    float transmittance;       // T
+};
+}  // namespace
+
 // Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
 // last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
 // (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
@@ -97,6 +120,13 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
     bool last = false;           // the ray leaving the last vertex: emission only
     float mis_pdf = 0.0f;        // pdf of the BSDF sample that made `ray` (0: camera or delta)
     const Material default_material;
+    // Display blend space: the runs of Gaussians whose composite waits for the radiance behind them, innermost last.
+    // While one is open, `radiance` and `beta` are relative to it (beta_outer: the product of the enclosing betas).
+    const bool display = st_.blend_space == BlendSpace::Display;
+    thread_local std::vector<DisplayRun> runs;
+    runs.clear();
+    bool first_trace = true, camera_run = false;  // camera_run: runs[0] is the camera ray's first segment
+    glm::vec3 beta_outer(1.0f);
     // After a bounce: the next ray is the last one (emission only) past max_bounces; false when Russian roulette
     // ends the path.
     auto next_vertex = [&](glm::vec3& weight) {
@@ -106,7 +136,8 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
             ++bounce;
             if (bounce > 3) {
                 // Russian roulette keeps long paths unbiased and cheap.
-                const float q = std::min(0.95f, std::max(weight.x, std::max(weight.y, weight.z)));
+                const glm::vec3 b = weight * beta_outer;  // the whole path's throughput
+                const float q = std::min(0.95f, std::max(b.x, std::max(b.y, b.z)));
                 if (rng.next() >= q) return false;
                 weight /= q;
             }
@@ -116,9 +147,28 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
     for (;;) {
         Segment seg = trace_with_lights(ray, first, mis_pdf, beta, radiance, rng, c);
         first = nullptr;
-        // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
-        // (the ray still takes their transmittance).
-        if (!last) radiance += beta * seg.radiance;
+        // What the radiance behind the segment is weighted with here (a display run applies its own T later).
+        float behind_weight = seg.transmittance;
+        // A segment holding LIT or BAKED_SHADOWED Gaussians is combined in linear light: their shaded radiance is
+        // linear and is added below at this level, and a bounce off them replaces what lies behind. Its baked
+        // Gaussians' display composite D is then taken to linear on its own (L = linear(D) + T L_behind), an
+        // approximation only where baked and shaded splats overlap along a ray.
+        const bool display_run = display && seg.gaussians > 0 && seg.shading.empty();
+        if (display && seg.gaussians > 0 && !display_run)
+            for (int ch = 0; ch < 3; ++ch) seg.radiance[ch] = srgb_to_linear_tabulated(seg.radiance[ch]);
+        if (display_run) {
+            // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
+            // (the ray still takes their transmittance).
+            runs.push_back({radiance, beta, last ? glm::vec3(0.0f) : seg.radiance, seg.transmittance});
+            camera_run = camera_run || first_trace;
+            radiance = glm::vec3(0.0f);
+            beta_outer *= beta;
+            beta = glm::vec3(1.0f);
+            behind_weight = 1.0f;
+        } else if (!last) {
+            radiance += beta * seg.radiance;
+        }
+        first_trace = false;
         if (camera_segment) {
             camera_gaussians += seg.gaussians;
             if (depth == kInf && seg.depth < kInf) {
@@ -160,9 +210,9 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
         } else if (!seg.mesh) {
             if (camera_segment) {
                 alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
-                if (!st_.transparent_background) radiance += beta * seg.transmittance * world_;
+                if (!st_.transparent_background) radiance += beta * behind_weight * world_;
             } else {
-                radiance += beta * seg.transmittance * world_;
+                radiance += beta * behind_weight * world_;
             }
             if (!gaussian_bounce) break;
         } else if (gaussian_bounce && camera_segment) {
@@ -182,7 +232,7 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
             ray = bounce_ray;
             continue;
         }
-        beta *= seg.transmittance;
+        beta *= behind_weight;
         const Surface sf = surface(seg, ray);
         const Material& mat = s_.materials.empty() ? default_material : s_.materials[sf.material];
         const bool entering = glm::dot(sf.ng, ray.d) < 0.0f;
@@ -246,7 +296,34 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
         const bool below = glm::dot(bs.wi, ng) < 0.0f;
         ray = Ray{sf.p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
     }
+    // Close the runs, innermost first: L = linear(D + T display(L_behind)).
+    const std::size_t kept = camera_run ? 1 : 0;
+    while (runs.size() > kept) {
+        const DisplayRun& r = runs.back();
+        glm::vec3 l;
+        for (int ch = 0; ch < 3; ++ch)
+            l[ch] = srgb_to_linear_tabulated(r.display[ch] + r.transmittance * linear_to_srgb(radiance[ch]));
+        radiance = r.outer_radiance + r.outer_beta * l;
+        runs.pop_back();
+    }
     SampleRecord record;
+    if (display) {
+        // The camera run goes to the film as its parts (see SampleRecord); a path without one is all behind
+        // (D = 0, T = 1).
+        glm::vec3 front(0.0f), d(0.0f), behind = radiance;
+        float t = 1.0f;
+        if (camera_run) {
+            front = runs[0].outer_radiance;
+            d = runs[0].display;
+            t = runs[0].transmittance;
+            behind = t * radiance;
+        }
+        radiance = front;
+        record.display_radiance = {d.x, d.y, d.z};
+        record.display_transmittance = t;
+        record.behind_radiance = {behind.x, behind.y, behind.z};
+        record.display_blend = true;
+    }
     record.radiance = {radiance.x, radiance.y, radiance.z};
     record.alpha = alpha;
     record.depth = depth;

@@ -36,6 +36,17 @@ const NameTable<Compositing>& compositing_names() {
     return names;
 }
 
+const NameTable<BlendSpace>& blend_space_names() {
+    static const NameTable<BlendSpace> names{
+        "blend space",
+        {{"DISPLAY", BlendSpace::Display,
+          "Gaussian colours composited as trained, in display (sRGB) space, then made linear: looks as in splat viewers"},
+         {"LINEAR", BlendSpace::Linear,
+          "Gaussian colours made linear, then composited: physically additive, brighter where Gaussians are "
+          "semi-transparent"}}};
+    return names;
+}
+
 const NameTable<GaussianMode>& gaussian_mode_names() {
     static const NameTable<GaussianMode> names{
         "Gaussian mode",
@@ -76,6 +87,8 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
          {"seed", T::Integer, "seed of the sampling pattern (0 .. 2^32 - 1)", &member<&S::seed>, {}},
          {"compositing", T::Name, "how Gaussians along a ray are combined", &named<&S::compositing, &compositing_names>,
           compositing_names().names()},
+         {"blend_space", T::Name, "colour space Gaussians along a ray are composited in (DISPLAY: as splat viewers)",
+          &named<&S::blend_space, &blend_space_names>, blend_space_names().names()},
          {"transmittance_threshold", T::Real, "stop compositing once the transmittance is below this, in [0, 1)",
           &member<&S::transmittance_threshold>, {}},
          {"gaussian_mode", T::Name, "geometry the Gaussians are traced as",

@@ -22,6 +22,17 @@ using FloatBuffer = std::vector<float, DefaultInitAllocator<float>>;
 // What one camera sample contributes to its pixel. Produced by the path integrator for every sample.
 struct SampleRecord {
     std::array<float, 3> radiance{0.0f, 0.0f, 0.0f};  // linear
+    // RenderSettings::blend_space Display: the camera ray's first run of Gaussians, composited in display space
+    // (D = sum T_i a_i c_i, display colours; T its transmittance) and the linear radiance behind it times T. The film
+    // combines them per pixel from their means over the samples (FilmTile::write_to):
+    //     rgb = mean(radiance) + linear(mean(D) + mean(T) display(mean(T L_behind) / mean(T))),
+    // which is linear(D + T display(L_behind)) for one ray, and to which stochastic compositing (one display colour
+    // c_i with probability T_i a_i, else D = 0, T = 1 and what lies behind) converges as samples grow. `radiance` is
+    // then only the area lights seen inside that run. Unused (false, zeros) in linear blend space.
+    bool display_blend = false;
+    std::array<float, 3> display_radiance{0.0f, 0.0f, 0.0f};
+    float display_transmittance = 0.0f;
+    std::array<float, 3> behind_radiance{0.0f, 0.0f, 0.0f};
     float alpha = 0.0f;    // coverage: 1 - transmittance of the primary segment (1 where an opaque surface was hit)
     // Distance along the camera ray to the first surface where the accumulated opacity reaches 0.5; +inf where
     // there is none.
@@ -133,6 +144,9 @@ public:
 private:
     int x0_, y0_, x1_, y1_;
     std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean) or first samples (FirstSample)
+    // Display blend space: per pixel the sums of D (3), T (1) and T L_behind (3) and the count of samples that had
+    // them (SampleRecord); empty until a sample has them.
+    std::vector<float> display_sums_;
 };
 
 }  // namespace raysplats
