@@ -22,6 +22,8 @@ def new_scene():
     scene.render.resolution_percentage = 100
     scene.raysplats.samples = 4
     scene.raysplats.max_bounces = 0
+    # Baked references composited linearly, as lit and shadowed splats are (the display blend is tested elsewhere).
+    scene.raysplats.blend_space = "LINEAR"
     scene.view_settings.view_transform = "Standard"
     scene.render.film_transparent = True  # alpha = coverage: the donut's pixels
     world = bpy.data.worlds.new("World")

@@ -67,6 +67,9 @@ RenderSettings settings(int w, int h, int spp, GaussianShading shading) {
     s.jitter = false;
     s.max_bounces = 0;
     s.gaussian_shading = shading;
+    // Lit and shadowed splats are shaded in linear light; the baked references here composite linearly too (the
+    // display blend of baked splats is render_gaussian_test's).
+    s.blend_space = BlendSpace::Linear;
     return s;
 }
 
