@@ -1,4 +1,4 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz): one mesh object, one polygon per Gaussian.
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply): one mesh object, one polygon per Gaussian.
 import os
 
 import bpy
@@ -17,9 +17,11 @@ def splat_formats():
 
 
 def splat_format_of(filepath):
-    """The core's entry for the format the file's extension names, or None."""
-    extension = os.path.splitext(filepath)[1].lower()
-    return next((f for f in splat_formats() if extension in f["extensions"]), None)
+    """The core's entry for the format the file's extension names, or None. The longest extension the name ends
+    with decides: "scene.compressed.ply" is a compressed PLY, "scene.ply" an INRIA one."""
+    name = filepath.lower()
+    matches = [(len(extension), f) for f in splat_formats() for extension in f["extensions"] if name.endswith(extension)]
+    return max(matches, key=lambda match: match[0])[1] if matches else None
 
 
 def splat_extensions():

@@ -296,6 +296,7 @@ void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
         case SplatFormat::Ply: return write_ply(path, cloud);
         case SplatFormat::Splat: return write_dot_splat(path, cloud);
         case SplatFormat::Spz: return write_spz(path, cloud);
+        case SplatFormat::CompressedPly: return write_compressed_ply(path, cloud);
     }
 }
 
