@@ -110,7 +110,8 @@ class Conversions(unittest.TestCase):
 
     def test_vocabularies(self):
         formats = {f["name"]: f for f in _native.splat_formats()}
-        self.assertEqual(sorted(formats), ["ply", "splat", "spz"])
+        self.assertEqual(sorted(formats), ["compressed_ply", "ply", "splat", "spz"])
+        self.assertEqual(formats["compressed_ply"]["extensions"], [".compressed.ply"])
         self.assertEqual(formats["spz"]["extensions"], [".spz"])
         self.assertEqual(formats["spz"]["up_axis"], "-Y")  # read in the core's RDF, like .ply
         self.assertIn("FISHEYE_EQUISOLID", [m["name"] for m in _native.camera_models()])
