@@ -42,6 +42,7 @@ class ImportExport(unittest.TestCase):
                 self.assertEqual(len(mesh.polygons), count - invisible)
                 self.assertEqual(len(mesh.vertices), 8 * (count - invisible))
                 self.assertTrue(obj.raysplats.is_gaussian)
+                self.assertEqual(obj.name, name[:name.index(".")])  # the whole extension goes (".compressed.ply")
                 self.assertEqual(obj.raysplats.sh_degree, degree)
                 # Automatic up axis: -Y up (COLMAP) for every format (the SPZ reader converts from RUB).
                 self.assertAlmostEqual(obj.rotation_euler.x, -np.pi / 2, places=6)

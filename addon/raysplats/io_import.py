@@ -82,7 +82,10 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
     (a failure at any step leaves no mesh or object behind)."""
     core = native.core()
     up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
-    name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
+    base = os.path.basename(filepath)
+    extension = next((e for e in sorted(splat_extensions(), key=len, reverse=True) if base.lower().endswith(e)),
+                     os.path.splitext(base)[1])
+    name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
     needed = check_import_memory(core, filepath, vertices_per_polygon, max_count)
     obj = None
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
