@@ -14,6 +14,7 @@ class Vocabularies(unittest.TestCase):
         self.assertEqual(extensions[:3], [".ply", ".splat", ".spz"])
         self.assertIn(".glb", extensions)
         self.assertIn(".gltf", extensions)
+        self.assertIn(".compressed.ply", extensions)
         self.assertEqual(io_import.splat_file_browser_filter(), ";".join("*" + e for e in extensions))
         self.assertEqual(io_import.splat_menu_text(), f"Gaussian Splats ({'/'.join(extensions)})")
         # The automatic import up axis is the same for every format: the readers return COLMAP's -Y up (SPZ's RUB is
@@ -30,6 +31,7 @@ class Vocabularies(unittest.TestCase):
         self.assertEqual(axes.resolve_import_up_axis("DETECT", glb, found_z), "-Y")
         self.assertEqual(axes.resolve_import_up_axis("AUTO", ply, found_z), "-Y")
         self.assertFalse(axes.detection_wanted("DETECT", glb))
+        self.assertEqual(io_import.splat_format_of("/scans/a.compressed.ply")["name"], "compressed_ply")
 
     def test_every_camera_type_renders_by_the_cores_name(self):
         camera = bpy.data.cameras.new("Vocabulary camera")

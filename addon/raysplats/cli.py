@@ -126,7 +126,7 @@ def _output_path(args, source, extension, count):
     <args.output>/<input stem><extension>."""
     output = args.output
     if count == 1 and os.path.splitext(output)[1] and not os.path.isdir(output):
-        if os.path.splitext(output)[1].lower() != extension:
+        if not output.lower().endswith(extension):
             raise UsageError(f"output '{output}' does not end in {extension}")
         return output
     os.makedirs(output, exist_ok=True)
@@ -279,9 +279,19 @@ def run(argv):
         extension = ".blend"
     elif args.command == "render":
         extension = ".png"
+    elif args.command == "convert":
+        # Splat formats by the core's table: "compressed_ply" is written as ".compressed.ply".
+        from raysplats import io_import
+        named = io_import.splat_format_of(args.output)
+        fmt = args.format or (named["name"] if named else "")
+        entry = next((f for f in io_import.splat_formats() if f["name"] == fmt), None)
+        if entry is None:
+            raise UsageError(f"convert: give --format ({', '.join(_splat_formats())}) or an output file with that "
+                             f"format's extension ({', '.join(_splat_extensions())})")
+        extension = entry["extensions"][0]
     else:
         fmt = args.format or os.path.splitext(args.output)[1].lower().lstrip(".")
-        choices = _mesh_formats() if args.command == "export" else _splat_formats()
+        choices = _mesh_formats()
         if fmt not in choices:
             raise UsageError(f"{args.command}: give --format ({', '.join(choices)}) or an output file with that extension")
         extension = "." + fmt

@@ -1,4 +1,4 @@
-# File > Export > Gaussian Splats (.ply/.splat/.spz): Gaussians recovered from the evaluated objects
+# File > Export > Gaussian Splats (.ply/.splat/.spz/.compressed.ply): Gaussians recovered from the evaluated objects
 # (modifiers, object transform and SH rotation applied), written atomically by the native core.
 import os
 
@@ -118,14 +118,14 @@ def format_extension(format_name):
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
-    """Export Gaussian splat objects, with every edit applied, to a 3DGS .ply, .splat or .spz file"""
+    """Export Gaussian splat objects, with every edit applied, to a .ply, .splat, .spz or .compressed.ply file"""
 
     bl_idname = "export_scene.gaussian_splats"
     bl_label = "Export Gaussian Splats"
     bl_options = {"REGISTER", "PRESET"}
 
     filename_ext = ".ply"
-    check_extension = None  # .ply, .splat and .spz are all accepted; the extension picks the format
+    check_extension = None  # every splat extension is accepted; the extension picks the format
     filter_glob: StringProperty(default="", options={"HIDDEN"})  # set from the core's formats in invoke()
 
     limit_to: EnumProperty(name="Limit to", items=export_scope.LIMIT_TO_ITEMS, default=export_scope.DEFAULT_LIMIT_TO,
@@ -156,6 +156,9 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
         if self.export_format == "SPLAT":
             # The format's own limit, said where it is chosen rather than discovered in a viewer.
             layout.label(text=".splat keeps no view-dependent colour (SH bands)", icon="INFO")
+        elif self.export_format == "COMPRESSED_PLY":
+            layout.label(text="Quantised: 11-bit positions per 256 splats,", icon="INFO")
+            layout.label(text="8-bit colour, opacity and SH bands")
 
     def check(self, context):
         # The extension follows the Format drop-down; True redraws the file browser.

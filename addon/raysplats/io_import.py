@@ -1,5 +1,5 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz/.glb/.gltf): one mesh object, one polygon per Gaussian (a glTF
-# file's other meshes through Blender's own glTF importer, io_gltf.py).
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply/.glb/.gltf): one mesh object, one polygon per
+# Gaussian (a glTF file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
 import bpy
@@ -18,9 +18,11 @@ def splat_formats():
 
 
 def splat_format_of(filepath):
-    """The core's entry for the format the file's extension names, or None."""
-    extension = os.path.splitext(filepath)[1].lower()
-    return next((f for f in splat_formats() if extension in f["extensions"]), None)
+    """The core's entry for the format the file's extension names, or None. The longest extension the name ends
+    with decides: "scene.compressed.ply" is a compressed PLY, "scene.ply" an INRIA one."""
+    name = filepath.lower()
+    matches = [(len(extension), f) for f in splat_formats() for extension in f["extensions"] if name.endswith(extension)]
+    return max(matches, key=lambda match: match[0])[1] if matches else None
 
 
 def writable_splat_formats():
@@ -127,7 +129,10 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
 
     core = native.core()
     splat_format = splat_format_of(filepath)
-    name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
+    base = os.path.basename(filepath)
+    extension = next((e for e in sorted(splat_extensions(), key=len, reverse=True) if base.lower().endswith(e)),
+                     os.path.splitext(base)[1])
+    name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
     representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
                                                        representation)
     obj = None

@@ -49,9 +49,11 @@ def mesh_format_of(filepath):
 
 
 def with_extension(filepath, extension, known_extensions):
-    """`filepath` ending in `extension`: a known extension is replaced, anything else kept and the extension added."""
-    root, current = os.path.splitext(filepath)
-    return (root if current.lower() in known_extensions else filepath) + extension
+    """`filepath` ending in `extension`: a known extension (the longest it ends with, so that ".compressed.ply" goes
+    whole) is replaced, anything else kept and the extension added."""
+    name = filepath.lower()
+    current = max((known for known in known_extensions if name.endswith(known)), key=len, default="")
+    return filepath[:len(filepath) - len(current)] + extension
 
 
 class NothingToExport(ValueError):

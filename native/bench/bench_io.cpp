@@ -36,7 +36,12 @@ int main(int argc, char** argv) {
                 cloud = raysplats::read_splat_file(p.string());
                 best_read = std::min(best_read, std::chrono::duration<double>(clock::now() - t0).count());
             }
-            const fs::path out = fs::temp_directory_path() / ("raysplats_bench_io" + p.extension().string());
+            // The file's own format (a .compressed.ply is written as one, not as the .ply its last dot names).
+            const raysplats::SplatFormat format = raysplats::probe_splat_file(p.string()).format;
+            std::string extension = p.extension().string();
+            for (const raysplats::SplatFormatInfo& f : raysplats::splat_formats())
+                if (f.format == format) extension = f.extensions.front();
+            const fs::path out = fs::temp_directory_path() / ("raysplats_bench_io" + extension);
             double best_write = 1e30;
             for (int rep = 0; rep < 3; ++rep) {
                 const auto t0 = clock::now();

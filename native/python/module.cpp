@@ -244,7 +244,7 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
     m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz file, or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
+          "Reads a .ply/.splat/.spz/.compressed.ply file, or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
           "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);
@@ -260,7 +260,7 @@ PYBIND11_MODULE(_native, m) {
     m.def("available_memory_bytes", &raysplats::available_memory_bytes,
           "Bytes that can be allocated without swapping (MemAvailable, within the cgroup limit); 0 if unknown.");
     m.def("write_splats", &write_splats, "path"_a, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
-          "Writes Gaussians atomically; the format comes from the extension (.ply, .splat, .spz).");
+          "Writes Gaussians atomically; the format comes from the extension (.ply, .splat, .spz, .compressed.ply).");
     m.def("gaussians_to_polygons", &gaussians_to_polygons, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
           "sh"_a, "vertices_per_polygon"_a = 8, "radius"_a = 3.0f,
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "

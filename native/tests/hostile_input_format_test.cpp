@@ -208,5 +208,20 @@ TEST(HostileInput, GltfBufferClaimsMoreThanItsBinChunk) {
     expect_refused_cheaply(path, {"not a valid glTF file"});
 }
 
+// A SuperSplat compressed PLY of 600 bytes whose header claims 100 M splats: refused at the chunk table, before any allocation.
+TEST(HostileInput, CompressedPlyClaims100MSplats) {
+    std::string text = "ply\nformat binary_little_endian 1.0\nelement chunk 390625\n";
+    for (const char* p : {"min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x", "min_scale_y", "min_scale_z",
+                          "max_scale_x", "max_scale_y", "max_scale_z"})
+        text += std::string("property float ") + p + "\n";
+    text += "element vertex 100000000\nproperty uint packed_position\nproperty uint packed_rotation\n"
+            "property uint packed_scale\nproperty uint packed_color\nend_header\n";
+    text += std::string(64, '\0');
+    const std::string path = tmp_path("hostile_100M_splats.compressed.ply");
+    write_text(path, text);
+    expect_refused_cheaply(path, {"file is truncated", "element 'chunk' declares 390625 records of 48 bytes",
+                                  "only 64 bytes follow"});
+}
+
 }  // namespace
 }  // namespace raysplats

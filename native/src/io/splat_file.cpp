@@ -300,6 +300,7 @@ void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
         case SplatFormat::Spz: return write_spz(path, cloud);
         case SplatFormat::Gltf:
             throw FileFormatError(path, "glTF splats are written by the mesh export (KHR_gaussian_splatting), not here");
+        case SplatFormat::CompressedPly: return write_compressed_ply(path, cloud);
     }
 }
 
