@@ -24,14 +24,14 @@ void register_render_bindings(py::module_& m);  // render_bindings.cpp
 
 namespace {
 
-// The splat formats of the core (splat_io.h): list of {name, extensions, description, up_axis}.
+// The splat formats of the core (splat_io.h): list of {name, extensions, description, up_axis, writable}.
 py::list splat_formats() {
     py::list out;
     for (const raysplats::SplatFormatInfo& f : raysplats::splat_formats()) {
         py::list extensions;
         for (const char* e : f.extensions) extensions.append(e);
         out.append(py::dict("name"_a = f.name, "extensions"_a = extensions, "description"_a = f.description,
-                            "up_axis"_a = f.up_axis));
+                            "up_axis"_a = f.up_axis, "writable"_a = f.writable));
     }
     return out;
 }
@@ -255,7 +255,8 @@ PYBIND11_MODULE(_native, m) {
           "previous_positions (the same mesh before an edit that kept its topology).");
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
-          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format)}.");
+          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), writable (False: read "
+          "only, SOG)}.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

@@ -146,6 +146,9 @@ private:
 // Header-only probes of each format (splat_io.h: probe_splat_file), beside their readers.
 SplatFileSummary probe_ply(const FileBytes& f);
 SplatFileSummary probe_spz(const FileBytes& f);
+SplatFileSummary probe_sog(const std::string& path);
+// Whether a file is SOG (sog_format.cpp): zip magic in its first bytes, or a name ending in .sog or meta.json.
+bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size);
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);

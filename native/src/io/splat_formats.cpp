@@ -1,4 +1,6 @@
 // The table of splat formats (raysplats/splat_io.h) and the lookups by extension and name that use it.
+#include <cctype>
+#include <cstring>
 #include <string>
 
 #include "io_common.h"
@@ -11,18 +13,28 @@ const std::vector<SplatFormatInfo>& splat_formats() {
     static const std::vector<SplatFormatInfo> formats{
         {SplatFormat::Ply, "ply", {".ply"}, "INRIA 3D Gaussian Splatting PLY", "-Y"},
         {SplatFormat::Splat, "splat", {".splat"}, "antimatter15 .splat (32-byte records, no higher SH bands)", "-Y"},
-        {SplatFormat::Spz, "spz", {".spz"}, "Niantic SPZ (compressed)", "-Y"}};
+        {SplatFormat::Spz, "spz", {".spz"}, "Niantic SPZ (compressed)", "-Y"},
+        {SplatFormat::Sog, "sog", {".sog", "meta.json"},
+         "PlayCanvas SOG (a .sog bundle, or the meta.json of an unbundled one); read only", "-Y", false}};
     return formats;
 }
 
 SplatFormat splat_format_from_extension(const std::string& path) {
     const std::string e = io::lower_extension(path);
+    std::string lower = path;
+    for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    // The longest ending that matches: endings may be whole names (SOG's "meta.json"), not only extensions.
     std::string known;
+    const SplatFormatInfo* best = nullptr;
+    std::size_t best_length = 0;
     for (const SplatFormatInfo& f : splat_formats())
         for (const char* extension : f.extensions) {
-            if (e == extension) return f.format;
+            const std::size_t n = std::strlen(extension);
+            if (n > best_length && lower.size() >= n && lower.compare(lower.size() - n, n, extension) == 0)
+                best = &f, best_length = n;
             known += (known.empty() ? "" : ", ") + std::string(extension);
         }
+    if (best) return best->format;
     throw FileFormatError(path, "unknown splat format: extension '" + e + "' is not one of " + known);
 }
 
