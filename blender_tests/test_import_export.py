@@ -15,6 +15,7 @@ REAL_FILES = [
     ("unicorn_sh3_reordered.ply", 49602, 3, 39),
     ("small.splat", 22764, 0, 0),
     ("biker_v4.spz", 152746, 0, 0),
+    ("unicorn_sh3.sog", 49602, 3, 39),  # the same scene as unicorn_sh3_reordered.ply, read from its SOG
 ]
 
 
@@ -138,3 +139,8 @@ class ImportExport(unittest.TestCase):
         with self.assertRaises(RuntimeError) as raised:
             bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("scene.xyz"))
         self.assertIn("unknown splat format", str(raised.exception))
+        # SOG is read, not written: export says so instead of writing something else under that name.
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("scene.sog"))
+        self.assertIn("SOG is read only", str(raised.exception))
+        self.assertFalse(os.path.exists(st.tmp_file("scene.sog")))

@@ -11,9 +11,15 @@ from raysplats.engine import sync
 class Vocabularies(unittest.TestCase):
     def test_splat_formats_come_from_the_core(self):
         extensions = [e for f in native.core().splat_formats() for e in f["extensions"]]
-        self.assertEqual(extensions, [".ply", ".splat", ".spz"])
-        self.assertEqual(io_import.splat_file_browser_filter(), "*.ply;*.splat;*.spz")
-        self.assertEqual(io_import.splat_menu_text(), "Gaussian Splats (.ply/.splat/.spz)")
+        self.assertEqual(extensions, [".ply", ".splat", ".spz", ".sog", "meta.json"])
+        self.assertEqual(io_import.splat_file_browser_filter(), "*.ply;*.splat;*.spz;*.sog;*meta.json")
+        self.assertEqual(io_import.splat_menu_text(), "Gaussian Splats (.ply/.splat/.spz/.sog/meta.json)")
+        # Export offers what the core writes: SOG is read only.
+        self.assertEqual(io_import.splat_file_browser_filter(writable_only=True), "*.ply;*.splat;*.spz")
+        self.assertEqual(io_import.splat_menu_text(writable_only=True), "Gaussian Splats (.ply/.splat/.spz)")
+        self.assertEqual(io_import.splat_format_of("/scans/unicorn/META.JSON")["name"], "sog")
+        self.assertIsNone(io_import.splat_format_of("/scans/unicorn/meta.json", writable_only=True))
+        self.assertIsNone(io_import.splat_format_of("/scans/settings.json"))
         # The automatic import up axis is the same for every format: the readers return COLMAP's -Y up (SPZ's RUB is
         # converted on reading), so the up axis is the scene's, not the format's.
         self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/A.SPZ")), "-Y")

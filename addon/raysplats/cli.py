@@ -35,7 +35,7 @@ import bpy
 # imported only once ensure_addon() has registered it.
 def _splat_formats():
     from raysplats import io_import
-    return tuple(f["name"] for f in io_import.splat_formats())
+    return tuple(f["name"] for f in io_import.splat_formats(writable_only=True))
 
 
 def _splat_extensions():

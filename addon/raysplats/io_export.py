@@ -55,8 +55,10 @@ def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMI
     extension.
     Returns (number of Gaussians written, recovery stats and "warnings" (messages), stage timings)."""
     extension = os.path.splitext(filepath)[1].lower()
-    if splat_format_of(filepath) is None:
-        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {', '.join(splat_extensions())}")
+    if splat_format_of(filepath, writable_only=True) is None:
+        read_only = splat_format_of(filepath)
+        what = f"{read_only['name'].upper()} is read only" if read_only else f"unknown splat format '{extension}'"
+        raise ValueError(f"'{filepath}': {what}; use {', '.join(splat_extensions(writable_only=True))}")
     objects = gaussian_objects(context, limit_to)
     if not objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects are {export_scope.describe(limit_to)}")
@@ -78,7 +80,7 @@ _format_items = []  # Blender needs the strings of dynamic enum items kept alive
 def splat_format_items(self, context):
     """The Format drop-down: one entry per format the core writes, labelled with its extension."""
     try:
-        formats = splat_formats()
+        formats = splat_formats(writable_only=True)
     except native.NativeModuleMissing:
         formats = []
     _format_items[:] = [(f["name"].upper(), f"{f['name'].upper()} ({f['extensions'][0]})", f["description"])
@@ -88,7 +90,7 @@ def splat_format_items(self, context):
 
 def format_extension(format_name):
     """The extension the core writes for a Format drop-down entry."""
-    return next(f["extensions"][0] for f in splat_formats() if f["name"].upper() == format_name)
+    return next(f["extensions"][0] for f in splat_formats(writable_only=True) if f["name"].upper() == format_name)
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
@@ -119,7 +121,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
         current = splat_format_of(self.filepath) if self.filepath else None
         if current is not None:
             self.export_format = current["name"].upper()
-        return open_splat_file_browser(self, ExportHelper, context, event)
+        return open_splat_file_browser(self, ExportHelper, context, event, writable_only=True)
 
     def draw(self, context):
         layout = self.layout
@@ -158,7 +160,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
 
 def menu_export(self, context):
-    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text=splat_menu_text())
+    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text=splat_menu_text(writable_only=True))
 
 
 def register():

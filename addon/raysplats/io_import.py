@@ -1,4 +1,4 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz): one mesh object, one polygon per Gaussian.
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.sog/meta.json): one mesh object, one polygon per Gaussian.
 import os
 
 import bpy
@@ -10,42 +10,49 @@ from .progress import StageProgress
 
 
 
-def splat_formats():
-    """The splat formats the core reads and writes, from the core (the one list of them): dicts of name,
-    extensions (the first is the one written), description and up_axis (of the cloud as read: -Y)."""
-    return native.core().splat_formats()
+def splat_formats(writable_only=False):
+    """The splat formats the core reads (and, where "writable", writes), from the core (the one list of them): dicts of
+    name, extensions (endings of file names: ".ply", or a whole name such as SOG's "meta.json"; the first is the one
+    written), description, up_axis (of the cloud as read: -Y) and writable. `writable_only`: the ones export offers."""
+    formats = native.core().splat_formats()
+    return [f for f in formats if f.get("writable", True)] if writable_only else formats
 
 
-def splat_format_of(filepath):
-    """The core's entry for the format the file's extension names, or None."""
-    extension = os.path.splitext(filepath)[1].lower()
-    return next((f for f in splat_formats() if extension in f["extensions"]), None)
+def splat_format_of(filepath, writable_only=False):
+    """The core's entry for the format the file's name ends with (the longest ending that matches), or None."""
+    name = filepath.lower()
+    best, best_length = None, 0
+    for f in splat_formats(writable_only):
+        for ending in f["extensions"]:
+            if name.endswith(ending) and len(ending) > best_length:
+                best, best_length = f, len(ending)
+    return best
 
 
-def splat_extensions():
-    return tuple(extension for f in splat_formats() for extension in f["extensions"])
+def splat_extensions(writable_only=False):
+    return tuple(extension for f in splat_formats(writable_only) for extension in f["extensions"])
 
 
-def splat_file_browser_filter():
-    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz"."""
-    return ";".join("*" + extension for extension in splat_extensions())
+def splat_file_browser_filter(writable_only=False):
+    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;*.sog;*meta.json"."""
+    return ";".join("*" + extension for extension in splat_extensions(writable_only))
 
 
-def open_splat_file_browser(operator, helper, context, event):
+def open_splat_file_browser(operator, helper, context, event, writable_only=False):
     """The invoke() of a splat import/export operator: the file browser (ImportHelper's or ExportHelper's)
-    filtered to the core's formats; without the native module, the error instead."""
+    filtered to the core's formats (export: `writable_only`); without the native module, the error instead."""
     try:
-        operator.filter_glob = splat_file_browser_filter()
+        operator.filter_glob = splat_file_browser_filter(writable_only)
     except native.NativeModuleMissing as error:
         operator.report({"ERROR"}, str(error))
         return {"CANCELLED"}
     return helper.invoke(operator, context, event)
 
 
-def splat_menu_text():
-    """ "Gaussian Splats (.ply/.splat/.spz)", or without the list when the native module is missing."""
+def splat_menu_text(writable_only=False):
+    """ "Gaussian Splats (.ply/.splat/.spz/.sog/meta.json)", or without the list when the native module is missing."""
     try:
-        return f"Gaussian Splats ({'/'.join(splat_extensions())})"
+        return f"Gaussian Splats ({'/'.join(splat_extensions(writable_only))})"
     except native.NativeModuleMissing:
         return "Gaussian Splats"
 
@@ -81,6 +88,8 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
     core = native.core()
     up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
     name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
+    if os.path.basename(filepath).lower() == "meta.json":  # an unbundled SOG: its folder names the scene
+        name = os.path.basename(os.path.dirname(os.path.abspath(filepath))) or name
     needed = check_import_memory(core, filepath, vertices_per_polygon, max_count)
     obj = None
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:

@@ -215,7 +215,7 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
     m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz file. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
+          "Reads a .ply/.splat/.spz/.sog file (or a SOG meta.json). Returns a dict of numpy arrays (positions, rotations wxyz, linear "
           "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);

@@ -110,8 +110,10 @@ class Conversions(unittest.TestCase):
 
     def test_vocabularies(self):
         formats = {f["name"]: f for f in _native.splat_formats()}
-        self.assertEqual(sorted(formats), ["ply", "splat", "spz"])
+        self.assertEqual(sorted(formats), ["ply", "sog", "splat", "spz"])
         self.assertEqual(formats["spz"]["extensions"], [".spz"])
+        self.assertEqual(formats["sog"]["extensions"], [".sog", "meta.json"])
+        self.assertEqual([name for name, f in sorted(formats.items()) if not f["writable"]], ["sog"])
         self.assertEqual(formats["spz"]["up_axis"], "-Y")  # read in the core's RDF, like .ply
         self.assertIn("FISHEYE_EQUISOLID", [m["name"] for m in _native.camera_models()])
         settings = {s["name"]: s for s in _native.render_settings()}
