@@ -1,6 +1,7 @@
 // Splat file read / write throughput on the real scenes in shared/data (DESIGN §8).
 // For each file: read time (best of 3), MB/s of the file size, splats/s; then write time and MB/s of the
-// written file for its own format (into the system temp folder; the file is removed afterwards).
+// written file for its own format (into the system temp folder; the file is removed afterwards); read-only formats
+// (SOG) are only read.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -17,7 +18,7 @@ int main(int argc, char** argv) {
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(dir)) {
         const std::string ext = e.path().extension().string();
-        if (ext == ".ply" || ext == ".splat" || ext == ".spz") files.push_back(e.path());
+        if (ext == ".ply" || ext == ".splat" || ext == ".spz" || ext == ".sog") files.push_back(e.path());
     }
     std::sort(files.begin(), files.end());
     using clock = std::chrono::steady_clock;
@@ -32,6 +33,11 @@ int main(int argc, char** argv) {
                 const auto t0 = clock::now();
                 cloud = raysplats::read_splat_file(p.string());
                 best_read = std::min(best_read, std::chrono::duration<double>(clock::now() - t0).count());
+            }
+            if (raysplats::splat_format_from_extension(p.string()) == raysplats::SplatFormat::Sog) {
+                std::printf("%-28s %9zu %10.2f %10.1f %9.0f %10s\n", p.filename().string().c_str(), cloud.size(), mb,
+                            best_read * 1e3, mb / best_read, "read only");
+                continue;
             }
             const fs::path out = fs::temp_directory_path() / ("raysplats_bench_io" + p.extension().string());
             double best_write = 1e30;
