@@ -150,6 +150,12 @@ TEST(SogFormat, TableSaysReadOnly) {
 
 constexpr double kSqrt2 = 1.4142135623730951;
 
+std::string good_meta_for_folder_test() {
+    return sog_meta_v2(5, json_ramp(256, -10, 0.05), json_ramp(256, -2, 0.015625),
+                       "{\"count\": 3, \"bands\": 1, \"codebook\": " + json_ramp(256, -0.5, 1.0 / 256) +
+                           ", \"files\": [\"shN_centroids.webp\", \"shN_labels.webp\"]}");
+}
+
 double unlog(double n) { return (n < 0 ? -1.0 : 1.0) * (std::exp(std::fabs(n)) - 1.0); }
 
 struct Built {
@@ -271,6 +277,18 @@ TEST(SogFormat, Version1DecodesAsSplatTransformAndTheEngineDo) {
     expect_quats_and_palette(c, [&](int byte) { return lerp(-0.75, 0.5, byte); });
     ASSERT_FALSE(report.warnings.empty());
     EXPECT_NE(report.warnings.back().find("version 1"), std::string::npos);
+}
+
+TEST(SogFormat, BundleWithItsFilesInOneFolder) {
+    // Some tools zip the scene's folder rather than its files: meta.json and the images under "unicorn/".
+    std::vector<ZipMember> members = build_scene(good_meta_for_folder_test()).members;
+    const GaussianCloud at_root = read_built(members, "files_at_root.sog");
+    for (ZipMember& m : members) m.name = "unicorn/" + m.name;
+    expect_same_cloud(read_built(members, "files_in_folder.sog"), at_root);
+    members.push_back({"other/meta.json", bytes_of("{}")});
+    const std::string path = tmp_path("two_folders.sog");
+    write_bytes(path, make_zip(members));
+    expect_format_error([&] { read_sog(path); }, path, {"no meta.json at its root, and several in folders"});
 }
 
 // ---------------------------------------------------------------------------------------------------------------
