@@ -15,7 +15,10 @@ REAL_FILES = [
     ("unicorn_sh3_reordered.ply", 49602, 3, 39),
     ("small.splat", 22764, 0, 0),
     ("biker_v4.spz", 152746, 0, 0),
-    ("unicorn_sh3.sog", 49602, 3, 39),  # the same scene as unicorn_sh3_reordered.ply, read from its SOG
+    # The same scene as unicorn_sh3_reordered.ply, read from its SOG, whose 8-bit opacities read as byte / 255 exactly:
+    # the 7 of byte 0 are invisible; those of byte 1 sit on the 1/255 threshold, and the .ply's logits (float32)
+    # round 32 of them below it.
+    ("unicorn_sh3.sog", 49602, 3, 7),
 ]
 
 
