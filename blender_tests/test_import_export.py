@@ -17,6 +17,10 @@ REAL_FILES = [
     ("small.splat", 22764, 0, 0),
     ("biker_v4.spz", 152746, 0, 0),
     ("guitar_supersplat.compressed.ply", 90854, 0, 0),
+    # The same scene as unicorn_sh3_reordered.ply, read from its SOG, whose 8-bit opacities read as byte / 255 exactly:
+    # the 7 of byte 0 are invisible; those of byte 1 sit on the 1/255 threshold, and the .ply's logits (float32)
+    # round 32 of them below it.
+    ("unicorn_sh3.sog", 49602, 3, 7),
 ]
 
 
@@ -166,3 +170,8 @@ class ImportExport(unittest.TestCase):
         with self.assertRaises(RuntimeError) as raised:
             bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("scene.xyz"))
         self.assertIn("unknown splat format", str(raised.exception))
+        # SOG is read, not written: export says so instead of writing something else under that name.
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("scene.sog"))
+        self.assertIn("SOG is read only", str(raised.exception))
+        self.assertFalse(os.path.exists(st.tmp_file("scene.sog")))

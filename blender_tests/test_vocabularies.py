@@ -12,11 +12,18 @@ class Vocabularies(unittest.TestCase):
     def test_splat_formats_come_from_the_core(self):
         extensions = [e for f in native.core().splat_formats() for e in f["extensions"]]
         self.assertEqual(extensions[:3], [".ply", ".splat", ".spz"])
-        self.assertIn(".glb", extensions)
-        self.assertIn(".gltf", extensions)
-        self.assertIn(".compressed.ply", extensions)
+        for extension in (".glb", ".gltf", ".compressed.ply", ".sog", "meta.json"):
+            self.assertIn(extension, extensions)
         self.assertEqual(io_import.splat_file_browser_filter(), ";".join("*" + e for e in extensions))
         self.assertEqual(io_import.splat_menu_text(), f"Gaussian Splats ({'/'.join(extensions)})")
+        # Export offers what the core writes: SOG and glTF (the mesh export writes glTF splats) are read only here.
+        writable = io_import.splat_extensions(writable_only=True)
+        self.assertNotIn(".sog", writable)
+        self.assertNotIn(".glb", writable)
+        self.assertIn(".compressed.ply", writable)
+        self.assertEqual(io_import.splat_format_of("/scans/unicorn/META.JSON")["name"], "sog")
+        self.assertIsNone(io_import.splat_format_of("/scans/unicorn/meta.json", writable_only=True))
+        self.assertIsNone(io_import.splat_format_of("/scans/settings.json"))
         # The automatic import up axis is the same for every format: the readers return COLMAP's -Y up (SPZ's RUB is
         # converted on reading), so the up axis is the scene's, not the format's.
         self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/A.SPZ")), "-Y")

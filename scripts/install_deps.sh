@@ -8,7 +8,7 @@ PACKAGES=(
   blender python3-numpy python3-dev python3-venv pybind11-dev
   libembree-dev libglm-dev libtbb-dev
   libopenmesh-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libdraco-dev draco
-  libzstd-dev zlib1g-dev
+  libzstd-dev zlib1g-dev libwebp-dev libminizip-dev
   libgtest-dev libbenchmark-dev assimp-utils
   xvfb xauth libgl1-mesa-dri
   patchelf binutils

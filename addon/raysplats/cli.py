@@ -36,7 +36,7 @@ import bpy
 def _splat_formats():
     """The formats a splat file can be converted to (the core writes them)."""
     from raysplats import io_import
-    return tuple(f["name"] for f in io_import.writable_splat_formats())
+    return tuple(f["name"] for f in io_import.splat_formats(writable_only=True))
 
 
 def _splat_extensions():

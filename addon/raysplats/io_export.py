@@ -79,10 +79,11 @@ def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMI
     splat_format = splat_format_of(filepath)
     if splat_format is None or not splat_format.get("writable", True):
         known = ", ".join(splat_extensions(writable_only=True))
-        if splat_format is not None:  # glTF: the Gaussians go into a glTF file through the mesh export
+        if splat_format is not None and splat_format["name"] == "gltf":  # the mesh export writes glTF splats
             raise ValueError(f"'{filepath}': {extension} splats are written by File > Export > RaySplats Mesh with "
                              f"KHR_gaussian_splatting; this export writes {known}")
-        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {known}")
+        what = f"{splat_format['name'].upper()} is read only" if splat_format else f"unknown splat format '{extension}'"
+        raise ValueError(f"'{filepath}': {what}; use {known}")
     objects = gaussian_objects(context, limit_to)
     if not objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects are {export_scope.describe(limit_to)}")
@@ -104,7 +105,7 @@ _format_items = []  # Blender needs the strings of dynamic enum items kept alive
 def splat_format_items(self, context):
     """The Format drop-down: one entry per format the core writes, labelled with its extension."""
     try:
-        formats = writable_splat_formats()
+        formats = splat_formats(writable_only=True)
     except native.NativeModuleMissing:
         formats = []
     _format_items[:] = [(f["name"].upper(), f"{f['name'].upper()} ({f['extensions'][0]})", f["description"])
@@ -114,7 +115,7 @@ def splat_format_items(self, context):
 
 def format_extension(format_name):
     """The extension the core writes for a Format drop-down entry."""
-    return next(f["extensions"][0] for f in writable_splat_formats() if f["name"].upper() == format_name)
+    return next(f["extensions"][0] for f in splat_formats(writable_only=True) if f["name"].upper() == format_name)
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
@@ -187,7 +188,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
 
 def menu_export(self, context):
-    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text=splat_menu_text())
+    self.layout.operator(EXPORT_SCENE_OT_gaussian_splats.bl_idname, text=splat_menu_text(writable_only=True))
 
 
 def register():

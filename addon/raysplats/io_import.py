@@ -1,5 +1,5 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply/.glb/.gltf): one mesh object, one polygon per
-# Gaussian (a glTF file's other meshes through Blender's own glTF importer, io_gltf.py).
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply/.sog/meta.json/.glb/.gltf): one mesh object, one
+# polygon per Gaussian (a glTF file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
 import bpy
@@ -11,38 +11,43 @@ from .progress import StageProgress
 
 
 
-def splat_formats():
-    """The splat formats the core reads and writes, from the core (the one list of them): dicts of name,
-    extensions (the first is the one written), description and up_axis (of the cloud as read: -Y)."""
-    return native.core().splat_formats()
+def splat_formats(writable_only=False):
+    """The splat formats the core reads (and, where "writable", writes), from the core (the one list of them): dicts of
+    name, extensions (endings of file names: ".ply", or a whole name such as SOG's "meta.json"; the first is the one
+    written), description, up_axis (of the cloud as read: -Y) and writable. `writable_only`: the ones export offers."""
+    formats = native.core().splat_formats()
+    return [f for f in formats if f.get("writable", True)] if writable_only else formats
 
 
-def splat_format_of(filepath):
-    """The core's entry for the format the file's extension names, or None. The longest extension the name ends
-    with decides: "scene.compressed.ply" is a compressed PLY, "scene.ply" an INRIA one."""
+def splat_format_of(filepath, writable_only=False):
+    """The core's entry for the format the file's name ends with (the longest ending that matches: "a.compressed.ply"
+    is a compressed PLY, "a.ply" an INRIA one), or None."""
     name = filepath.lower()
-    matches = [(len(extension), f) for f in splat_formats() for extension in f["extensions"] if name.endswith(extension)]
-    return max(matches, key=lambda match: match[0])[1] if matches else None
+    best, best_length = None, 0
+    for f in splat_formats(writable_only):
+        for ending in f["extensions"]:
+            if name.endswith(ending) and len(ending) > best_length:
+                best, best_length = f, len(ending)
+    return best
 
 
 def writable_splat_formats():
-    """The entries of splat_formats() the core also writes (glTF splats are read here, written by the mesh export)."""
-    return [f for f in splat_formats() if f.get("writable", True)]
+    """The entries of splat_formats() the core also writes (not glTF, written by the mesh export, nor SOG)."""
+    return splat_formats(writable_only=True)
 
 
 def splat_extensions(writable_only=False):
-    formats = writable_splat_formats() if writable_only else splat_formats()
-    return tuple(extension for f in formats for extension in f["extensions"])
+    return tuple(extension for f in splat_formats(writable_only) for extension in f["extensions"])
 
 
 def splat_file_browser_filter(writable_only=False):
-    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;…"."""
+    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;…;*meta.json"."""
     return ";".join("*" + extension for extension in splat_extensions(writable_only))
 
 
 def open_splat_file_browser(operator, helper, context, event, writable_only=False):
     """The invoke() of a splat import/export operator: the file browser (ImportHelper's or ExportHelper's)
-    filtered to the core's formats (those it writes, for an export); without the native module, the error instead."""
+    filtered to the core's formats (export: `writable_only`); without the native module, the error instead."""
     try:
         operator.filter_glob = splat_file_browser_filter(writable_only)
     except native.NativeModuleMissing as error:
@@ -51,10 +56,10 @@ def open_splat_file_browser(operator, helper, context, event, writable_only=Fals
     return helper.invoke(operator, context, event)
 
 
-def splat_menu_text():
-    """ "Gaussian Splats (.ply/.splat/.spz)", or without the list when the native module is missing."""
+def splat_menu_text(writable_only=False):
+    """ "Gaussian Splats (.ply/.splat/.spz/.sog/meta.json)", or without the list when the native module is missing."""
     try:
-        return f"Gaussian Splats ({'/'.join(splat_extensions())})"
+        return f"Gaussian Splats ({'/'.join(splat_extensions(writable_only))})"
     except native.NativeModuleMissing:
         return "Gaussian Splats"
 
@@ -133,6 +138,8 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
     extension = next((e for e in sorted(splat_extensions(), key=len, reverse=True) if base.lower().endswith(e)),
                      os.path.splitext(base)[1])
     name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
+    if base.lower() == "meta.json":  # an unbundled SOG: its folder names the scene
+        name = os.path.basename(os.path.dirname(os.path.abspath(filepath))) or "Gaussians"
     representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
                                                        representation)
     obj = None

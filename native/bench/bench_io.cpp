@@ -1,7 +1,8 @@
 // Splat file read / write throughput on the real scenes in shared/data (DESIGN §8).
 // For each file: read time (best of 3), MB/s of the file size, splats/s; then write time and MB/s of the
-// written file for its own format (into the system temp folder; the file is removed afterwards). A second table:
-// the up-axis estimate (raysplats/up_axis.h) and a KHR_gaussian_splatting .glb written (mesh export) and read back.
+// written file for its own format (into the system temp folder; the file is removed afterwards); read-only formats
+// (SOG) are only read. A second table: the up-axis estimate (raysplats/up_axis.h) and a KHR_gaussian_splatting .glb
+// written (mesh export) and read back.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,7 +21,7 @@ int main(int argc, char** argv) {
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(dir)) {
         const std::string ext = e.path().extension().string();
-        if (ext == ".ply" || ext == ".splat" || ext == ".spz") files.push_back(e.path());
+        if (ext == ".ply" || ext == ".splat" || ext == ".spz" || ext == ".sog") files.push_back(e.path());
     }
     std::sort(files.begin(), files.end());
     using clock = std::chrono::steady_clock;
@@ -35,6 +36,11 @@ int main(int argc, char** argv) {
                 const auto t0 = clock::now();
                 cloud = raysplats::read_splat_file(p.string());
                 best_read = std::min(best_read, std::chrono::duration<double>(clock::now() - t0).count());
+            }
+            if (raysplats::splat_format_from_extension(p.string()) == raysplats::SplatFormat::Sog) {
+                std::printf("%-28s %9zu %10.2f %10.1f %9.0f %10s\n", p.filename().string().c_str(), cloud.size(), mb,
+                            best_read * 1e3, mb / best_read, "read only");
+                continue;
             }
             // The file's own format (a .compressed.ply is written as one, not as the .ply its last dot names).
             const raysplats::SplatFormat format = raysplats::probe_splat_file(p.string()).format;

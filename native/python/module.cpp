@@ -26,7 +26,7 @@ void register_render_bindings(py::module_& m);  // render_bindings.cpp
 
 namespace {
 
-// The splat formats of the core (splat_io.h): list of {name, extensions, description, up_axis}.
+// The splat formats of the core (splat_io.h): list of {name, extensions, description, up_axis, writable}.
 py::list splat_formats() {
     py::list out;
     for (const raysplats::SplatFormatInfo& f : raysplats::splat_formats()) {
@@ -244,7 +244,7 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
     m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz/.compressed.ply file, or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
+          "Reads a .ply/.splat/.spz/.compressed.ply/.sog file (or a SOG meta.json), or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
           "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);
@@ -306,7 +306,7 @@ PYBIND11_MODULE(_native, m) {
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
           "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), up_axis_by_specification "
-          "(True when the format's specification fixes up, as glTF's +Y), writable (False: read only)}.");
+          "(True when the format's specification fixes up, as glTF's +Y), writable (False: read only, glTF and SOG)}.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

@@ -110,13 +110,16 @@ class Conversions(unittest.TestCase):
 
     def test_vocabularies(self):
         formats = {f["name"]: f for f in _native.splat_formats()}
-        self.assertLessEqual({"ply", "splat", "spz", "gltf", "compressed_ply"}, set(formats))
+        self.assertLessEqual({"ply", "splat", "spz", "gltf", "compressed_ply", "sog"}, set(formats))
         self.assertEqual(formats["gltf"]["extensions"], [".glb", ".gltf"])
         self.assertEqual(formats["compressed_ply"]["extensions"], [".compressed.ply"])
+        self.assertFalse(formats["sog"]["writable"])
         # glTF's +Y up is its specification's, not a habit: the import's automatic up axis takes it at its word.
         self.assertTrue(formats["gltf"]["up_axis_by_specification"])
         self.assertFalse(formats["ply"]["up_axis_by_specification"])
         self.assertEqual(formats["spz"]["extensions"], [".spz"])
+        self.assertEqual(formats["sog"]["extensions"], [".sog", "meta.json"])
+        self.assertEqual([name for name, f in sorted(formats.items()) if not f["writable"]], ["sog"])
         self.assertEqual(formats["spz"]["up_axis"], "-Y")  # read in the core's RDF, like .ply
         self.assertIn("FISHEYE_EQUISOLID", [m["name"] for m in _native.camera_models()])
         settings = {s["name"]: s for s in _native.render_settings()}

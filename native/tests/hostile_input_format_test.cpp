@@ -17,6 +17,7 @@
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/splat_io.h"
+#include "sog_test_util.h"
 
 namespace raysplats {
 namespace {
@@ -221,6 +222,74 @@ TEST(HostileInput, CompressedPlyClaims100MSplats) {
     write_text(path, text);
     expect_refused_cheaply(path, {"file is truncated", "element 'chunk' declares 390625 records of 48 bytes",
                                   "only 64 bytes follow"});
+}
+
+// --- PlayCanvas SOG (native/src/io/sog_format.cpp): a zip of meta.json and WebP images.
+
+std::vector<ZipMember> sog_members(std::size_t count) {
+    return small_sog_members(count, 4, 2, sog_meta_v2(count, json_ramp(256, -10, 0.05), json_ramp(256, -2, 0.015625)));
+}
+
+std::string write_sog(const std::string& name, const std::vector<ZipMember>& members) {
+    const std::string path = tmp_path(name);
+    write_bytes(path, make_zip(members));
+    return path;
+}
+
+// 1.3 kB: meta.json deflated, claiming 4 GB uncompressed. Refused from the zip's directory, before any allocation.
+TEST(HostileInput, SogMemberClaims4GB) {
+    std::vector<ZipMember> members = sog_members(5);
+    members[0].deflate = true;
+    members[0].claimed_size = 4000000000LL;
+    const std::string path = write_sog("hostile_claims_4GB.sog", members);
+    expect_refused_cheaply(path, {"member 'meta.json'", "claims 4000000000 bytes, more than meta.json can need (1048576)"});
+}
+
+// A means image claiming 1.5 MB (as much as 1000 splats may need) from its ~100 deflated bytes: more than deflate
+// can expand.
+TEST(HostileInput, SogMemberClaimsMoreThanDeflateExpands) {
+    std::vector<ZipMember> members =
+        small_sog_members(1000, 32, 32, sog_meta_v2(1000, json_ramp(256, -10, 0.05), json_ramp(256, -2, 0.015625)));
+    members[1].deflate = true;
+    members[1].claimed_size = 1500000;
+    const std::string path = write_sog("hostile_deflate_ratio.sog", members);
+    expect_refused_cheaply(path, {"member 'means_l.webp'", "claims 1500000 bytes from", "1032:1", "zip bomb"});
+}
+
+// A true zip bomb: 16 MB of spaces as meta.json, deflated to 16 kB, sizes honest. Refused at its claimed size.
+TEST(HostileInput, SogDeflateBombAsMeta) {
+    std::vector<ZipMember> members = sog_members(5);
+    members[0].data.assign(std::size_t(16) << 20, ' ');
+    members[0].deflate = true;
+    const std::string path = write_sog("hostile_deflate_bomb.sog", members);
+    EXPECT_LT(read_bytes(path).size(), 40000u);
+    expect_refused_cheaply(path, {"member 'meta.json'", "claims 16777216 bytes, more than meta.json can need"});
+}
+
+// 42-byte WebPs whose VP8L headers claim 16383 x 16383 pixels (1 GB of RGBA), for a meta.json count of 150 M splats
+// (35 GB of cloud at SH degree 3): refused from the headers, since no lossless WebP of 42 bytes holds that.
+TEST(HostileInput, SogWebpHeaderClaims16383Squared) {
+    ByteVector webp = bytes_of("RIFF");
+    put32(webp, 34);
+    const std::string tag = "WEBPVP8L";
+    webp.insert(webp.end(), tag.begin(), tag.end());
+    put32(webp, 21);
+    webp.push_back(0x2f);
+    put32(webp, 16382u | (16382u << 14));  // width - 1, height - 1 (14 bits each), no alpha, version 0
+    webp.resize(42, 0);
+    std::vector<ZipMember> members = sog_members(5);
+    members[0].data = bytes_of(sog_meta_v2(150000000, json_ramp(256, -10, 0.05), json_ramp(256, -2, 0.015625)));
+    members[1].data = members[2].data = webp;
+    const std::string path = write_sog("hostile_webp_dimensions.sog", members);
+    expect_refused_cheaply(path, {"member 'means_l.webp'", "16383 x 16383", "more than a lossless WebP of 42 bytes can hold"});
+}
+
+// meta.json claims 100 M splats for 4 x 2 images: refused before the cloud (23.6 GB) is allocated.
+TEST(HostileInput, SogCountBeyondItsImages) {
+    std::vector<ZipMember> members = sog_members(5);
+    members[0].data = bytes_of(sog_meta_v2(100000000, json_ramp(256, -10, 0.05), json_ramp(256, -2, 0.015625)));
+    const std::string path = write_sog("hostile_sog_count.sog", members);
+    expect_refused_cheaply(path, {"member 'means_l.webp'", "4 x 2 = 8 pixels, fewer than the 100000000 splats"});
 }
 
 }  // namespace

@@ -118,12 +118,13 @@ TEST(SplatFormatTable, ExtensionsLeadToTheirFormat) {
         // Every reader converts to the core's RDF (DESIGN §4): the up axis is the scene's, not the format's.
         EXPECT_EQ(std::string(f.up_axis), "-Y") << f.name;
     }
-    EXPECT_EQ(extensions, (std::set<std::string>{".ply", ".splat", ".spz", ".glb", ".gltf", ".compressed.ply"}));
+    EXPECT_EQ(extensions, (std::set<std::string>{".ply", ".splat", ".spz", ".glb", ".gltf", ".compressed.ply", ".sog",
+                                                 "meta.json"}));
     EXPECT_EQ(splat_format_from_extension("A.SPZ"), SplatFormat::Spz);
     try {
         splat_format_from_extension("scene.obj");
         FAIL();
     } catch (const FileFormatError& e) {
-        EXPECT_NE(std::string(e.what()).find("'.obj' is not one of .ply, .splat, .spz, .compressed.ply"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("'.obj' is not one of .ply, .splat, .spz, .glb, .gltf, .compressed.ply, .sog, meta.json"), std::string::npos) << e.what();
     }
 }

@@ -1,6 +1,6 @@
 // Reading and writing splat files: INRIA 3DGS .ply, antimatter15 .splat, Niantic .spz, SuperSplat's compressed .ply
 // (DESIGN §4); reading the KHR_gaussian_splatting primitives of glTF files (.glb, .gltf; written by mesh_export.h's
-// glTF writer).
+// glTF writer) and PlayCanvas SOG (.sog bundles and unbundled meta.json folders).
 // Every reader throws FileFormatError naming the file (and byte offset) on bad input; writers are atomic
 // (temporary file in the same folder, then rename), so a failed write never replaces a good file.
 #pragma once
@@ -13,15 +13,16 @@
 
 namespace raysplats {
 
-enum class SplatFormat { Ply, Splat, Spz, Gltf, CompressedPly };
+enum class SplatFormat { Ply, Splat, Spz, Gltf, CompressedPly, Sog };
 
 // The splat formats the core reads and writes: the one list the add-on, its command line and the tools take
 // their format names, file extensions and import defaults from.
 struct SplatFormatInfo {
     SplatFormat format;
-    const char* name;                     // "ply", "splat", "spz", "compressed_ply"
-    // Lower case, with the dot; the first is the one written. An extension may have two dots (".compressed.ply"):
-    // a file name takes the format of the longest extension it ends with.
+    const char* name;                     // "ply", "splat", "spz", "gltf", "compressed_ply", "sog"
+    // Lower-case endings of the file name: an extension with its dot (possibly two dots, ".compressed.ply"), or a
+    // whole name ("meta.json", SOG's unbundled form); the first is the one written. A file name takes the format of
+    // the longest ending it matches.
     std::vector<const char*> extensions;
     const char* description;
     // The up direction of the cloud the reader returns: "-Y" for every format, since the readers convert to the
@@ -32,12 +33,14 @@ struct SplatFormatInfo {
     // as they are; false when the file only follows a habit of its producers, so the scene's data may tell better
     // (raysplats/up_axis.h).
     bool up_axis_by_specification = false;
-    // False for a format the core reads but does not write as a splat file (glTF: written by the mesh export).
+    // False for a format the core reads but does not write as a splat file (glTF: written by the mesh export; SOG):
+    // write_splat_file refuses them, export lists skip them.
     bool writable = true;
 };
 const std::vector<SplatFormatInfo>& splat_formats();
 
-// Format from the file name's extension (.ply, .splat, .spz, .compressed.ply; case-insensitive, the longest one that
+// Format from the file name's ending (.ply, .splat, .spz, .compressed.ply, .glb, .gltf, .sog, meta.json;
+// case-insensitive; the longest ending that
 // matches); throws FileFormatError otherwise.
 SplatFormat splat_format_from_extension(const std::string& path);
 const char* splat_format_name(SplatFormat format);
@@ -53,7 +56,8 @@ struct ReadOptions {
 };
 
 // Reads any supported file; the format comes from the content (PLY magic, gzip or SPZ magic, glTF magic or a .gltf
-// extension), falling back to the extension for the headerless .splat. Quaternions come out normalised, scales linear, opacities
+// extension, zip magic for a .sog), falling back to the name for the headerless .splat and SOG's meta.json.
+// Quaternions come out normalised, scales linear, opacities
 // linear. Non-finite values are dropped or repaired and counted in `report`.
 GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
 
@@ -66,6 +70,15 @@ GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options
 // Niantic SPZ versions 2 and 3 (gzip) and 4 (zstd streams). SPZ stores RUB (x right, y up, z back); the cloud
 // comes out in the core's RDF like every reader's: positions, rotations and SH rotated 180° about x.
 GaussianCloud read_spz(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
+// PlayCanvas SOG, versions 1 and 2 (native/src/io/sog_format.cpp gives the format and its sources): `path` is a .sog
+// bundle (a zip of meta.json and lossless WebP images) or an unbundled meta.json with the images beside it. No axes
+// are converted: PlayCanvas's tools store a SOG in the axes of the .ply it came from (the core's RDF). Every bound a
+// hostile file could abuse (zip sizes, image sizes, codebook and palette indices) is checked before allocating.
+GaussianCloud read_sog(const std::string& path, const ReadOptions& options = {}, LoadReport* report = nullptr);
+// The same for a .sog bundle held in memory (`name` names it in errors): for bundles that come from elsewhere than a
+// file, and for fuzzing.
+GaussianCloud read_sog_bundle(const std::uint8_t* data, std::size_t size, const std::string& name,
+                              const ReadOptions& options = {}, LoadReport* report = nullptr);
 
 // glTF 2.0 (.glb, or .gltf with its buffers beside it) carrying KHR_gaussian_splatting (ratified text): every splat
 // primitive the default scene places, through its node's world transform, in one cloud (SH degree the highest of
@@ -93,7 +106,7 @@ GaussianCloud read_compressed_ply_bytes(const std::uint8_t* data, std::size_t si
                                         const ReadOptions& options = {}, LoadReport* report = nullptr);
 
 // What a splat file's header says, read without decoding its data (a few bytes; SPZ 2/3: the first 16 bytes of its
-// gzip stream): for checking, before an import, that there is memory for it. Throws FileFormatError like the
+// gzip stream; SOG: meta.json): for checking, before an import, that there is memory for it. Throws FileFormatError like the
 // readers for a file they would refuse at its header. `count` is the number of splats the file declares
 // (before any are dropped or filtered).
 struct SplatFileSummary {
@@ -103,7 +116,7 @@ struct SplatFileSummary {
 };
 SplatFileSummary probe_splat_file(const std::string& path);
 
-// Writes the format given by the extension. All writers throw InvalidArgument for an inconsistent cloud
+// Writes the format given by the extension (not SOG, which is read only: FileFormatError). All writers throw InvalidArgument for an inconsistent cloud
 // (before touching any file) and FileFormatError naming the path when the file cannot be written.
 void write_splat_file(const std::string& path, const GaussianCloud& cloud);
 

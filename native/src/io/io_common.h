@@ -156,6 +156,9 @@ GaussianCloud read_compressed_ply_data(const std::uint8_t* data, std::size_t siz
                                        const PlyHeader& header, const ReadOptions& options, LoadReport* report);
 SplatFileSummary probe_compressed_ply(const std::uint8_t* data, std::size_t size, const std::string& path,
                                       const PlyHeader& header);
+SplatFileSummary probe_sog(const std::string& path);
+// Whether a file is SOG (sog_format.cpp): zip magic in its first bytes, or a name ending in .sog or meta.json.
+bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size);
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);

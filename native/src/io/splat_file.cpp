@@ -270,6 +270,7 @@ GaussianCloud read_splat_file(const std::string& path, const ReadOptions& option
     if (got >= 3 && std::memcmp(head, "ply", 3) == 0) return read_ply(path, options, report);
     if (got >= 4 && std::memcmp(head, "NGSP", 4) == 0) return read_spz(path, options, report);
     if (got >= 2 && head[0] == 0x1f && head[1] == 0x8b) return read_spz(path, options, report);
+    if (io::is_sog_file(path, head, got)) return read_sog(path, options, report);
     const std::string e = io::lower_extension(path);
     if ((got >= 4 && std::memcmp(head, "glTF", 4) == 0) || e == ".gltf") return read_gltf_splats(path, options, report);
     if (e == ".splat") return read_dot_splat(path, options, report);
@@ -289,6 +290,7 @@ SplatFileSummary probe_splat_file(const std::string& path) {
     if ((f.size() >= 4 && std::memcmp(d, "NGSP", 4) == 0) || (f.size() >= 2 && d[0] == 0x1f && d[1] == 0x8b))
         return io::probe_spz(f);
     if ((f.size() >= 4 && std::memcmp(d, "glTF", 4) == 0) || io::lower_extension(path) == ".gltf") return io::probe_gltf(f);
+    if (io::is_sog_file(path, d, f.size())) return io::probe_sog(path);
     if (io::lower_extension(path) == ".splat") return {SplatFormat::Splat, f.size() / 32, 0};
     throw FileFormatError(path, "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
 }
@@ -301,6 +303,9 @@ void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
         case SplatFormat::Gltf:
             throw FileFormatError(path, "glTF splats are written by the mesh export (KHR_gaussian_splatting), not here");
         case SplatFormat::CompressedPly: return write_compressed_ply(path, cloud);
+        case SplatFormat::Sog:
+            throw FileFormatError(path, "SOG is read only here: write .ply, .splat or .spz (PlayCanvas's splat-transform "
+                                        "converts those to SOG)");
     }
 }
 

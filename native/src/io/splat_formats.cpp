@@ -17,7 +17,9 @@ const std::vector<SplatFormatInfo>& splat_formats() {
         // glTF is +Y up by specification; the reader converts it to the core's RDF like SPZ's RUB.
         {SplatFormat::Gltf, "gltf", {".glb", ".gltf"}, "glTF 2.0 with KHR_gaussian_splatting (import only)", "-Y", true, false},
         {SplatFormat::CompressedPly, "compressed_ply", {".compressed.ply"},
-         "SuperSplat compressed PLY (chunks of 256 splats, 16 bytes a splat)", "-Y"}};
+         "SuperSplat compressed PLY (chunks of 256 splats, 16 bytes a splat)", "-Y"},
+        {SplatFormat::Sog, "sog", {".sog", "meta.json"},
+         "PlayCanvas SOG (a .sog bundle, or the meta.json of an unbundled one); read only", "-Y", false, false}};
     return formats;
 }
 
@@ -25,18 +27,18 @@ SplatFormat splat_format_from_extension(const std::string& path) {
     const std::string e = io::lower_extension(path);
     std::string lower = path;
     for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-    // The longest extension the name ends with: "a.compressed.ply" is a compressed PLY, "a.ply" an INRIA one.
+    // The longest ending that matches: endings may be whole names (SOG's "meta.json"), not only extensions.
     std::string known;
-    const SplatFormatInfo* found = nullptr;
-    std::size_t found_length = 0;
+    const SplatFormatInfo* best = nullptr;
+    std::size_t best_length = 0;
     for (const SplatFormatInfo& f : splat_formats())
         for (const char* extension : f.extensions) {
-            const std::size_t length = std::strlen(extension);
-            if (lower.size() >= length && lower.compare(lower.size() - length, length, extension) == 0 && length > found_length)
-                found = &f, found_length = length;
+            const std::size_t n = std::strlen(extension);
+            if (n > best_length && lower.size() >= n && lower.compare(lower.size() - n, n, extension) == 0)
+                best = &f, best_length = n;
             known += (known.empty() ? "" : ", ") + std::string(extension);
         }
-    if (found) return found->format;
+    if (best) return best->format;
     throw FileFormatError(path, "unknown splat format: extension '" + e + "' is not one of " + known);
 }
 
