@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
-from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_menu_text,
+from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text,
                         writable_splat_formats)
 from .io_mesh_export import with_extension
 from .progress import StageProgress
