@@ -48,7 +48,7 @@ TEST(Film, TileAveragesRadianceAndCoverageAndKeepsTheFirstSurface) {
     tile.add_sample(2, 3, 0, sample(0.5f, 1.0f, 4.0f, 1.0f));
     tile.add_sample(2, 3, 1, sample(0.25f, 0.5f, 9.0f, -1.0f));
     tile.add_sample(1, 1, 0, sample(1.0f, 0.0f, std::numeric_limits<float>::infinity(), 0.0f));
-    tile.write_to(film, 2, /*transparent_background=*/true);
+    tile.write_to(film, /*transparent_background=*/true);
     const std::size_t p = 3 * 4 + 2;
     EXPECT_FLOAT_EQ(film.rgba()[4 * p + 0], 0.375f);
     EXPECT_FLOAT_EQ(film.rgba()[4 * p + 1], 0.75f);
@@ -62,9 +62,40 @@ TEST(Film, TileAveragesRadianceAndCoverageAndKeepsTheFirstSurface) {
     EXPECT_TRUE(std::isinf(film.depth()[unsampled]));
     EXPECT_EQ(film.alpha()[unsampled], 0.0f);
     film.depth()[0] = 7.0f;
-    tile.write_to(film, 2, /*transparent_background=*/false);
+    tile.write_to(film, /*transparent_background=*/false);
     EXPECT_EQ(film.depth()[0], 7.0f);
     EXPECT_EQ(film.rgba()[4 * p + 3], 1.0f);  // opaque background: alpha 1, coverage stays in Alpha
     EXPECT_EQ(film.rgba()[4 * unsampled + 3], 1.0f);
     EXPECT_FLOAT_EQ(film.alpha()[p], 0.75f);
+}
+
+// Cycles' noise estimate from the odd half of a pixel's samples, checked with hand-computed cases (radiance r, 2r,
+// 3r): r alternating 1 and 0 (means 0.5, 1, 1.5, odd means 0: |I - A| sums to 3, bright, so relative to the
+// intensity 3), the same at 0.04 (0.12, dark: relative to sqrt(0.12)), a constant (0); and the per-pixel sample
+// counts the film's Debug Sample Count channel shows.
+TEST(Film, NoiseEstimateIsCyclesErrorOfTheOddHalf) {
+    FilmTile tile(0, 0, 3, 1, /*noise_estimates=*/true);
+    for (int s = 0; s < 4; ++s) {
+        const float bright = s % 2 == 0 ? 1.0f : 0.0f, dark = s % 2 == 0 ? 0.04f : 0.0f;
+        tile.add_sample(0, 0, s, sample(bright, bright, 1.0f, 0.0f));
+        tile.add_sample(1, 0, s, sample(dark, dark, 1.0f, 0.0f));
+        tile.add_sample(2, 0, s, sample(0.3f, 0.3f, 1.0f, 0.0f));
+    }
+    tile.add_sample(2, 0, 4, sample(0.3f, 0.3f, 1.0f, 0.0f));  // a fifth sample: odd count, two odd samples
+    EXPECT_NEAR(tile.noise_estimate(0, 0), 3.0 / (0.0001 + 3.0), 1e-6);
+    EXPECT_NEAR(tile.noise_estimate(1, 0), 0.12 / (0.0001 + std::sqrt(0.12)), 1e-6);
+    EXPECT_NEAR(tile.noise_estimate(2, 0), 0.0, 1e-6);
+    EXPECT_EQ(tile.sample_count(0, 0), 4);
+    EXPECT_EQ(tile.sample_count(2, 0), 5);
+    Film film;
+    film.resize(3, 1);
+    tile.write_to(film, /*transparent_background=*/true);
+    EXPECT_EQ(film.sample_count()[0], 4.0f);
+    EXPECT_EQ(film.sample_count()[2], 5.0f);
+    EXPECT_FLOAT_EQ(film.rgba()[0], 0.5f);  // each pixel divided by its own count
+    EXPECT_FLOAT_EQ(film.rgba()[8], 0.3f);
+    // One sample has no odd half: no estimate (infinite, never converged).
+    FilmTile one(0, 0, 1, 1, true);
+    one.add_sample(0, 0, 0, sample(0.5f, 0.5f, 1.0f, 0.0f));
+    EXPECT_TRUE(std::isinf(one.noise_estimate(0, 0)));
 }
