@@ -73,6 +73,7 @@ bool crossing(const std::vector<Point>& points, int m, double b, double target, 
 }  // namespace
 
 int main(int argc, char** argv) {
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);  // each line as it comes, also into a file (the runs are long)
     std::string path = std::string(RAYSPLATS_DATA_DIR) + "/showroom_1.5M.ply", image_path;
     int width = 960, height = 540, reference_samples = 512, max_samples = 256, min_samples = 16;
     float camera_back = 0.0f;

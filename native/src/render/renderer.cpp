@@ -71,8 +71,7 @@ bool update_sampling_mask(const PixelRect& region, int image_width, const float 
             for (int y = tile.y0(); y < tile.y1(); ++y)
                 for (int x = tile.x0(); x < tile.x1(); ++x) {
                     const std::size_t p = std::size_t(y) * w + std::size_t(x);
-                    // A pixel no camera ray reaches (count 0) has nothing to refine.
-                    noisy[p] = sampling[p] && tile.sample_count(x, y) > 0 && !(tile.noise_estimate(x, y) < threshold);
+                    noisy[p] = sampling[p] && !(tile.noise_estimate(x, y) < threshold);
                 }
         }
     });
@@ -189,7 +188,11 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                         jy = pixel_filter.position(rngs[l].next());
                     }
                     const CameraRay cr = camera_rays(x + jx, y + jy);
-                    if (!cr.valid) continue;
+                    if (!cr.valid) {
+                        tile.samples.add_empty_sample(x, y);
+                        ++taken;
+                        continue;
+                    }
                     rays[l] = Ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
                                   glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
                     active[l] = any = true;

@@ -63,8 +63,8 @@ const FilmChannelInfo& film_channel_info(FilmChannel channel);
 
 struct RenderStats {
     double render_seconds = 0.0;
-    // Camera samples taken (one primary ray each; pixels no camera ray reaches take none). Divided by the rendered
-    // pixels: the mean samples per pixel, which adaptive sampling lowers.
+    // Camera samples taken (one per pixel and sample, each a primary ray unless the camera has none there, outside a
+    // fisheye's circle). Divided by the rendered pixels: the mean samples per pixel, which adaptive sampling lowers.
     std::uint64_t camera_rays = 0;
     std::uint64_t traced_rays = 0;       // every rtcIntersect1/rtcOccluded1 call, including re-traces
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
@@ -128,6 +128,9 @@ public:
     FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false);
     // Sample number `sample` of film pixel (x, y): the pixel's samples so far, sample_count(x, y).
     void add_sample(int x, int y, int sample, const SampleRecord& record);
+    // A sample of film pixel (x, y) whose camera ray does not exist (jittered outside a fisheye's circle): it counts,
+    // contributing nothing, so that the pixel's mean fades at the circle's rim.
+    void add_empty_sample(int x, int y) { ++counts_[index(x, y)]; }
     // Samples film pixel (x, y) has received.
     int sample_count(int x, int y) const { return int(counts_[index(x, y)]); }
     // Cycles' per-pixel noise estimate (film_adaptive_sampling_convergence_check; Dammertz et al. 2010, "A
