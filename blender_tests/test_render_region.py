@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.engine import final
+from raysplats.engine import final, ui
 
 DONUT = "donut_sh0.ply"
 WIDTH, HEIGHT, SAMPLES = 96, 72, 4
@@ -101,6 +101,27 @@ class AdaptiveSampling(unittest.TestCase):
     def test_off_takes_every_sample(self):
         _, off = self.render(False)
         self.assertEqual(off["mean_samples"], 64)
+
+    def test_sampling_panel_shows_the_noise_threshold(self):
+        log = []
+
+        class Layout:  # records the props a panel draws
+            use_property_split = use_property_decorate = active = False
+
+            def prop(self, owner, name, **kwargs):
+                log.append((name, kwargs.get("text")))
+
+            def column(self, **kwargs):
+                return Layout()
+
+            row = column
+
+        st.reset_render_scene(8, 8, 1)
+        ui.RAYSPLATS_RENDER_PT_sampling.draw(type("Panel", (), {"layout": Layout()})(), bpy.context)
+        names = [name for name, _ in log]
+        for name in ("use_adaptive_sampling", "adaptive_threshold", "samples", "adaptive_min_samples"):
+            self.assertIn(name, names)
+        self.assertIn(("samples", "Max Samples"), log)  # Cycles' label while the threshold is on
 
     def test_defaults_are_cycles(self):
         settings = st.reset_render_scene(8, 8, 1).raysplats
