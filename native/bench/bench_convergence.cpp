@@ -231,26 +231,37 @@ int main(int argc, char** argv) {
             std::printf("           %8.4f  %4d  %4d   %12.1f   %12.4f   %7.4f   %7.1f\n", t, min_samples, max_samples,
                         p.samples, noise(p, 0), noise(p, 1), p.seconds);
         }
+        // Each adaptive render against fixed sampling at the same noise: n = a / e^2 samples (the fitted curve), at
+        // the fixed render's seconds per sample.
+        const double fixed_seconds_per_sample = fixed.back().seconds / fixed.back().samples;
+        std::printf("same noise with fixed samples (n = a / e^2 from the fit; time at %.2f s per sample):\n",
+                    fixed_seconds_per_sample);
+        for (std::size_t i = 0; i < adaptive.size(); ++i)
+            for (int k = 0; k < kMetrics; ++k) {
+                const double e2 = std::max(adaptive[i].e2[k] - b[k], 1e-30), n = a[k] / e2;
+                std::printf("  threshold %.4f, %-12s fixed %6.1f samples (%6.1f s) vs adaptive %5.1f (%6.1f s): "
+                            "%.2fx fewer samples, %.2fx less time\n",
+                            thresholds[i], kMetricNames[k], n, n * fixed_seconds_per_sample, adaptive[i].samples,
+                            adaptive[i].seconds, n / adaptive[i].samples,
+                            n * fixed_seconds_per_sample / adaptive[i].seconds);
+            }
         std::sort(adaptive.begin(), adaptive.end(), [](const Point& x, const Point& y) { return x.samples < y.samples; });
         for (int k = 0; k < kMetrics; ++k)
-        for (double target : {0.01, 0.005}) {
-            double fixed_samples = 0, fixed_seconds = 0, adaptive_samples = 0, adaptive_seconds = 0;
-            const bool fixed_reached = crossing(fixed, k, b[k], target, fixed_samples, fixed_seconds);
-            const bool adaptive_reached = crossing(adaptive, k, b[k], target, adaptive_samples, adaptive_seconds);
-            std::printf("to %.1f %% noise, %s (interpolated in log-log):\n", 100 * target, kMetricNames[k]);
-            if (fixed_reached)
-                std::printf("  fixed samples      %6.1f samples per pixel, %6.1f s\n", fixed_samples, fixed_seconds);
-            else
-                std::printf("  fixed samples      not bracketed within %d samples\n", max_samples);
-            if (adaptive_reached)
-                std::printf("  adaptive sampling  %6.1f samples per pixel (mean), %6.1f s\n", adaptive_samples,
-                            adaptive_seconds);
-            else
-                std::printf("  adaptive sampling  not bracketed by the thresholds run\n");
-            if (fixed_reached && adaptive_reached)
-                std::printf("  ratio              %.2fx fewer samples, %.2fx less time\n",
-                            fixed_samples / adaptive_samples, fixed_seconds / adaptive_seconds);
-        }
+            for (double target : {0.01, 0.005}) {
+                double fixed_samples = 0, fixed_seconds = 0, adaptive_samples = 0, adaptive_seconds = 0;
+                const bool fixed_reached = crossing(fixed, k, b[k], target, fixed_samples, fixed_seconds);
+                const bool adaptive_reached = crossing(adaptive, k, b[k], target, adaptive_samples, adaptive_seconds);
+                std::printf("to %.1f %% noise, %s (interpolated in log-log):\n", 100 * target, kMetricNames[k]);
+                if (fixed_reached)
+                    std::printf("  fixed samples      %6.1f samples per pixel, %6.1f s\n", fixed_samples, fixed_seconds);
+                else
+                    std::printf("  fixed samples      not bracketed within %d samples\n", max_samples);
+                if (adaptive_reached)
+                    std::printf("  adaptive sampling  %6.1f samples per pixel (mean), %6.1f s\n", adaptive_samples,
+                                adaptive_seconds);
+                else
+                    std::printf("  adaptive sampling  not bracketed by the thresholds run (its minimum may be above)\n");
+            }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_convergence: %s\n", e.what());
         return 1;
