@@ -95,6 +95,13 @@ class Batch(unittest.TestCase):
         for name, count, _ in REAL_FILES:
             cloud = st.native().read_splats(os.path.join(spz, os.path.splitext(name)[0] + ".spz"))
             self.assertEqual(len(cloud["opacities"]), count, name)
+        # A two-dot extension names its format: the output's ".compressed.ply" is SuperSplat's compressed PLY, not a
+        # 3DGS .ply (before, the last dot decided).
+        compressed = os.path.join(spz, "small.compressed.ply")
+        status, output = run_cli("convert", st.data_file("small_sh3_inria.ply"), "-o", compressed)
+        self.assertEqual(status, 0, output)
+        summary = st.native().probe_splat_file(compressed)
+        self.assertEqual((summary["format"], summary["count"], summary["sh_degree"]), ("compressed_ply", 9080, 3))
 
     def test_a_corrupt_file_is_reported_and_the_good_ones_still_written(self):
         out = fresh_dir("batch_corrupt")

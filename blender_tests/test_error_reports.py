@@ -4,6 +4,8 @@
 # folder, a setting the renderer rejects) keeps its plain message and prints no traceback.
 import contextlib
 import io
+import sys
+import types
 import unittest
 from unittest import mock
 
@@ -11,6 +13,7 @@ import bpy
 
 import mesh_export_testing as mt
 import splat_testing as st
+import raysplats
 from raysplats import errors, gaussian_mesh, material_reader
 from raysplats.engine import RaySplatsRenderEngine, final, viewport
 
@@ -56,7 +59,7 @@ class Operators(ReportTest):
     def test_import_failure_after_the_mesh_is_filled_leaves_nothing_behind(self):
         # Before: a failure after fill_mesh (the material, the object, linking) left an orphan mesh and object.
         from raysplats import io_import
-        for target, name in ((io_import.material, "gaussian_material"), (io_import.axes, "object_rotation_x")):
+        for target, name in ((io_import.material, "gaussian_material"), (io_import.axes, "object_rotation_euler")):
             with self.subTest(failing=name):
                 st.reset_scene()
                 meshes, objects = len(bpy.data.meshes), len(bpy.data.objects)
@@ -84,13 +87,16 @@ class Operators(ReportTest):
             def read_splats(*args, **kwargs):
                 raise AssertionError("read_splats called although the memory check failed")
 
+        for representation, needed in (("POLYGONS", real.import_memory_bytes(22764, 0, 8)),
+                                       ("AUTO", real.compact_import_memory_bytes(22764, 0))):  # (the smaller form)
+            with mock.patch.object(io_import.native, "core", return_value=SmallMachine()):
+                message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats,
+                                                     filepath=st.data_file(SPLATS), representation=representation)
+            self.assert_user_error(message, stderr, "Import failed: ")
+            self.assertIn(f"not enough memory to import 22,764 Gaussians (needs about "
+                          f"{io_import.memory_size_text(needed)}, 1 MB available)", message)
+            self.assertEqual(len(bpy.data.meshes), 0)
         needed = real.import_memory_bytes(22764, 0, 8)
-        with mock.patch.object(io_import.native, "core", return_value=SmallMachine()):
-            message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats, filepath=st.data_file(SPLATS))
-        self.assert_user_error(message, stderr, "Import failed: ")
-        self.assertIn(f"not enough memory to import 22,764 Gaussians (needs about "
-                      f"{io_import.memory_size_text(needed)}, 1 MB available)", message)
-        self.assertEqual(len(bpy.data.meshes), 0)
         # A std::bad_alloc during the import (the estimate too low) is reported the same way, not as a bug.
         with mock.patch.object(gaussian_mesh, "fill_mesh", side_effect=MemoryError("std::bad_alloc")):
             message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats, filepath=st.data_file(SPLATS))
@@ -184,3 +190,69 @@ class Classification(unittest.TestCase):
         self.assertFalse(errors.is_user_error(errors.InternalError("invariant")))
         self.assertFalse(errors.is_user_error(KeyError("x")))
         self.assertFalse(errors.is_user_error(RuntimeError("bpy_struct: item.attr = val")))
+
+
+class ViewportFailures(unittest.TestCase):
+    def test_a_scene_that_cannot_be_built_is_built_again_only_after_a_change(self):
+        st.reset_render_scene(64, 48, 4)
+        engine = types.SimpleNamespace(viewport_state=viewport.ViewportState())
+        context = types.SimpleNamespace(region=types.SimpleNamespace(width=64, height=48))
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        with mock.patch.object(viewport.sync, "SceneSync", side_effect=ValueError("NaN vertex in 'Splats'")) as build:
+            with self.assertRaisesRegex(ValueError, "NaN vertex"):
+                viewport.view_draw(engine, context, depsgraph)
+            for _ in range(3):  # redraws: the failure was reported once; no build at every redraw
+                viewport.view_draw(engine, context, depsgraph)
+            self.assertEqual(build.call_count, 1)
+            viewport.view_update(engine, context, depsgraph)  # the user changes the scene: try again
+            with self.assertRaisesRegex(ValueError, "NaN vertex"):
+                viewport.view_draw(engine, context, depsgraph)
+            self.assertEqual(build.call_count, 2)
+
+    def test_drawing_that_fails_restores_blenders_gpu_state(self):
+        calls = []
+        gpu = types.ModuleType("gpu")
+        gpu.state = types.SimpleNamespace(blend_set=lambda mode: calls.append(("blend", mode)))
+        presets = types.ModuleType("gpu_extras.presets")
+
+        def draw_texture_2d(*args):
+            raise RuntimeError("GPUTexture freed")
+
+        presets.draw_texture_2d = draw_texture_2d
+        engine = types.SimpleNamespace(bind_display_space_shader=lambda scene: calls.append(("bind",)),
+                                       unbind_display_space_shader=lambda: calls.append(("unbind",)))
+        region = types.SimpleNamespace(width=64, height=48)
+        with mock.patch.dict(sys.modules, {"gpu": gpu, "gpu_extras": types.ModuleType("gpu_extras"),
+                                           "gpu_extras.presets": presets}), \
+                self.assertRaisesRegex(RuntimeError, "GPUTexture freed"):
+            viewport.draw_image(engine, None, object(), region)
+        self.assertEqual(calls, [("blend", "ALPHA_PREMULT"), ("bind",), ("unbind",), ("blend", "NONE")])
+
+
+class Registration(unittest.TestCase):
+    def registered(self):
+        """Whether each visible part of the add-on is in Blender: its scene settings, import operator, engine."""
+        try:
+            bpy.ops.import_scene.gaussian_splats.get_rna_type()
+            operator = True
+        except KeyError:
+            operator = False
+        # (Blender 4.5 has an abstract HydraRenderEngine base without a bl_idname.)
+        engines = {getattr(engine, "bl_idname", None) for engine in bpy.types.RenderEngine.__subclasses__()
+                   if engine.is_registered}
+        return hasattr(bpy.types.Scene, "raysplats"), operator, "RAYSPLATS" in engines
+
+    def test_a_failed_registration_leaves_blender_as_it_was(self):
+        self.assertEqual(self.registered(), (True, True, True))
+        raysplats.unregister()
+        try:
+            self.assertEqual(self.registered(), (False, False, False))
+            # A late module fails (e.g. a class name another add-on took): every module before it is taken back.
+            with mock.patch.object(raysplats.splat_ui, "register", side_effect=ValueError("register_class(...): "
+                                                                                      "already registered")), \
+                    self.assertRaisesRegex(ValueError, "already registered"):
+                raysplats.register()
+            self.assertEqual(self.registered(), (False, False, False))
+        finally:
+            raysplats.register()
+        self.assertEqual(self.registered(), (True, True, True))

@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
+from raysplats import axes
 
 # (file, splats, SH degree) as documented in shared/data/README.md, and how many of the splats have an opacity
 # below 1/255 (invisible: the import skips them, DESIGN §5).
@@ -15,7 +16,13 @@ REAL_FILES = [
     ("unicorn_sh3_reordered.ply", 49602, 3, 39),
     ("small.splat", 22764, 0, 0),
     ("biker_v4.spz", 152746, 0, 0),
+    ("guitar_supersplat.compressed.ply", 90854, 0, 0),
 ]
+
+
+# The real files whose up the automatic up axis finds in their data (native/tests/up_axis_test.cpp); the others have no
+# clear ground in their data and keep the -Y convention.
+FOUND_UP_AXES = {"donut_sh0.ply": "Z", "unicorn_sh3_reordered.ply": "-Y"}
 
 
 def visible_gaussians(cloud):
@@ -41,9 +48,13 @@ class ImportExport(unittest.TestCase):
                 self.assertEqual(len(mesh.polygons), count - invisible)
                 self.assertEqual(len(mesh.vertices), 8 * (count - invisible))
                 self.assertTrue(obj.raysplats.is_gaussian)
+                self.assertEqual(obj.name, name[:name.index(".")])  # the whole extension goes (".compressed.ply")
                 self.assertEqual(obj.raysplats.sh_degree, degree)
-                # Automatic up axis: -Y up (COLMAP) for every format (the SPZ reader converts from RUB).
-                self.assertAlmostEqual(obj.rotation_euler.x, -np.pi / 2, places=6)
+                # Automatic up axis: found from the data where it shows a ground (the donut, made in Blender, is Z up),
+                # else -Y up (COLMAP) for every format (the SPZ reader converts from RUB).
+                expected_up = FOUND_UP_AXES.get(name, "-Y")
+                self.assertEqual(obj.raysplats.up_axis, expected_up)
+                np.testing.assert_allclose(tuple(obj.rotation_euler), axes.object_rotation_euler(expected_up), atol=1e-6)
                 for k in range((degree + 1) ** 2):
                     self.assertIn(f"gs_sh_{k}", mesh.attributes)
                 self.assertIn("gs_color", mesh.color_attributes)
@@ -74,11 +85,13 @@ class ImportExport(unittest.TestCase):
         # reads back exactly as the source's (their files also hold normals / zstd frames we write our own way),
         # except SH bands 1-3, which the mesh keeps in each face's frame (DESIGN §5): rotated there and back, they
         # differ by float rounding (at most 1.5e-8 on small_sh3_inria.ply).
-        for name in ("small.splat", "small_sh3_inria.ply", "donut_sh0.ply", "biker_v4.spz"):
+        # .compressed.ply: every value, and every byte after the header (whose comment names the writer).
+        for name in ("small.splat", "small_sh3_inria.ply", "donut_sh0.ply", "biker_v4.spz",
+                     "guitar_supersplat.compressed.ply"):
             with self.subTest(name=name):
                 st.reset_scene()
                 st.import_file(name)
-                extension = os.path.splitext(name)[1]
+                extension = ".compressed.ply" if name.endswith(".compressed.ply") else os.path.splitext(name)[1]
                 exported = st.export_file("untouched_exact" + extension)
                 # Gaussians below 1/255 are not imported (they get no polygon); every other one comes back exactly.
                 original = visible_gaussians(st.native().read_splats(st.data_file(name)))
@@ -89,6 +102,11 @@ class ImportExport(unittest.TestCase):
                 if extension == ".splat":
                     with open(st.data_file(name), "rb") as a, open(st.tmp_file("untouched_exact.splat"), "rb") as b:
                         self.assertTrue(a.read() == b.read(), "the .splat file changed")
+                if extension == ".compressed.ply":
+                    with open(st.data_file(name), "rb") as a, open(st.tmp_file("untouched_exact" + extension), "rb") as b:
+                        x, y = a.read(), b.read()
+                    self.assertTrue(x[x.index(b"end_header\n"):] == y[y.index(b"end_header\n"):],
+                                    "the compressed PLY's data changed")
 
     def test_export_to_splat_and_spz_round_trips_within_quantisation(self):
         st.import_file("small_sh3_inria.ply")
@@ -98,6 +116,16 @@ class ImportExport(unittest.TestCase):
                 exported = st.export_file("roundtrip" + extension)
                 self.assertEqual(len(exported["opacities"]), 9080)
                 np.testing.assert_allclose(exported["positions"], original["positions"], atol=position_tol)
+        # The Format drop-down's compressed PLY: SuperSplat's layout, splats in Morton order (so compared as sorted
+        # coordinates), positions within half an 11-10-11-bit step of chunks that in this sparse scene span up to
+        # 1.6 k units (0.4), opacity within half an 8-bit step.
+        exported = st.export_file("roundtrip.compressed.ply", export_format="COMPRESSED_PLY")
+        self.assertEqual(st.native().probe_splat_file(st.tmp_file("roundtrip.compressed.ply"))["format"], "compressed_ply")
+        self.assertEqual(len(exported["opacities"]), 9080)
+        for axis in range(3):
+            np.testing.assert_allclose(np.sort(exported["positions"][:, axis]), np.sort(original["positions"][:, axis]),
+                                       atol=0.4)
+        np.testing.assert_allclose(np.sort(exported["opacities"]), np.sort(original["opacities"]), atol=1 / 510 + 1e-6)
 
     def test_import_options(self):
         obj = st.import_file("small_sh3_inria.ply", vertices_per_polygon=5, radius=2.0, up_axis="Z",

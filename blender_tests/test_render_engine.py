@@ -447,8 +447,9 @@ class RenderEngine(unittest.TestCase):
         self.assertFalse(job.wait(0.3))
         start = time.perf_counter()
         job.cancel()
-        self.assertTrue(job.wait(1.0))
-        self.assertLess(time.perf_counter() - start, 0.5)
+        # Loose bounds (a loaded machine stretches them): 4096 samples would take minutes.
+        self.assertTrue(job.wait(10.0))
+        self.assertLess(time.perf_counter() - start, 10.0)
         self.assertTrue(job.result()["cancelled"])
 
 

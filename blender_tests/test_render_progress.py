@@ -128,5 +128,40 @@ class FinalRenderProgress(unittest.TestCase):
         np.testing.assert_array_equal(engine.final_image, film["rgba"][::-1].reshape(-1, 4))
 
 
+class FinalRenderFailure(unittest.TestCase):
+    """A failure inside the render (here injected: writing a pass into Blender's result raises) ends Blender's result
+    cancelled (no half-written result left open) and stops the render thread at once."""
+
+    def render_failing(self, engine, update_seconds):
+        jobs, make_job = [], st.native().RenderJob
+
+        def recording_job(*args, **kwargs):
+            jobs.append(make_job(*args, **kwargs))
+            return jobs[-1]
+
+        with mock.patch.object(final, "UPDATE_SECONDS", update_seconds), \
+                mock.patch.object(st.native(), "RenderJob", recording_job), \
+                mock.patch.object(final.passes, "write_passes", side_effect=RuntimeError("pass 'Depth' not found")), \
+                self.assertRaisesRegex(RuntimeError, "pass 'Depth' not found"):
+            final.render_final(engine, bpy.context.evaluated_depsgraph_get())
+        self.assertEqual(len(jobs), 1)
+        return jobs[0]
+
+    def test_failure_while_showing_a_partial_result(self):
+        donut_scene(samples=1 << 16)  # hours of passes unless the failure stops them
+        engine = RecordingEngine()
+        job = self.render_failing(engine, update_seconds=0.0)
+        self.assertTrue(engine.ended_cancelled)
+        self.assertTrue(job.wait(60.0), "the render thread went on after the failure")
+        self.assertTrue(job.result()["cancelled"])
+
+    def test_failure_while_writing_the_final_image(self):
+        donut_scene(samples=2)
+        engine = RecordingEngine()
+        self.render_failing(engine, update_seconds=1e9)
+        self.assertTrue(engine.ended_cancelled)
+        self.assertEqual(engine.partial_images, [])
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -11,15 +11,27 @@ from raysplats.engine import sync
 class Vocabularies(unittest.TestCase):
     def test_splat_formats_come_from_the_core(self):
         extensions = [e for f in native.core().splat_formats() for e in f["extensions"]]
-        self.assertEqual(extensions, [".ply", ".splat", ".spz"])
-        self.assertEqual(io_import.splat_file_browser_filter(), "*.ply;*.splat;*.spz")
-        self.assertEqual(io_import.splat_menu_text(), "Gaussian Splats (.ply/.splat/.spz)")
+        self.assertEqual(extensions[:3], [".ply", ".splat", ".spz"])
+        self.assertIn(".glb", extensions)
+        self.assertIn(".gltf", extensions)
+        self.assertIn(".compressed.ply", extensions)
+        self.assertEqual(io_import.splat_file_browser_filter(), ";".join("*" + e for e in extensions))
+        self.assertEqual(io_import.splat_menu_text(), f"Gaussian Splats ({'/'.join(extensions)})")
         # The automatic import up axis is the same for every format: the readers return COLMAP's -Y up (SPZ's RUB is
         # converted on reading), so the up axis is the scene's, not the format's.
         self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/A.SPZ")), "-Y")
         self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/a.splat")), "-Y")
         self.assertEqual(axes.resolve_import_up_axis("Z", io_import.splat_format_of("/scans/a.spz")), "Z")
         self.assertIsNone(io_import.splat_format_of("/scans/a.xyz"))
+        # Detection: a decided estimate wins over the convention, except where the format's specification fixes up.
+        found_z, unsure_z = {"axis": "Z", "decided": True}, {"axis": "Z", "decided": False}
+        ply, glb = io_import.splat_format_of("/scans/a.ply"), io_import.splat_format_of("/scans/a.glb")
+        self.assertEqual(axes.resolve_import_up_axis("DETECT", ply, found_z), "Z")
+        self.assertEqual(axes.resolve_import_up_axis("DETECT", ply, unsure_z), "-Y")
+        self.assertEqual(axes.resolve_import_up_axis("DETECT", glb, found_z), "-Y")
+        self.assertEqual(axes.resolve_import_up_axis("AUTO", ply, found_z), "-Y")
+        self.assertFalse(axes.detection_wanted("DETECT", glb))
+        self.assertEqual(io_import.splat_format_of("/scans/a.compressed.ply")["name"], "compressed_ply")
 
     def test_every_camera_type_renders_by_the_cores_name(self):
         camera = bpy.data.cameras.new("Vocabulary camera")

@@ -18,24 +18,36 @@ if "bpy" in locals():
 
     for _module in (native, blender_compat, errors, axes, progress, color_adjustment, properties,  # noqa: F821
                     mesh_fast_read, gaussian_mesh, material, material_reader, export_scope, modifier_checks,
-                    io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
+                    io_import, native_splats, compact_splats, io_export, io_mesh_export, splat_selection, splat_tools,
                     splat_transform, splat_handlers, splat_ui, engine):  # noqa: F821
         importlib.reload(_module)
 else:
     from . import (native, blender_compat, errors, axes, progress, color_adjustment, properties, mesh_fast_read,
-                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, io_export,
-                   io_mesh_export, native_splats, splat_selection, splat_tools, splat_transform, splat_handlers,
-                   splat_ui, engine)
+                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, native_splats,
+                   compact_splats, io_export, io_mesh_export, splat_selection, splat_tools, splat_transform,
+                   splat_handlers, splat_ui, engine)
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export, io_mesh_export, native_splats, splat_selection, splat_tools,
-            splat_transform, splat_handlers, splat_ui, engine)
+_modules = (properties, io_import, io_export, io_mesh_export, native_splats, compact_splats, splat_selection,
+            splat_tools, splat_transform, splat_handlers, splat_ui, engine)
 
 
 def register():
-    for module in _modules:
-        module.register()
+    # All or nothing: a module that fails to register (a clash with another add-on's names, a newer Blender's API)
+    # takes back the modules registered before it, so Blender is left as it was and enabling again can work.
+    registered = []
+    try:
+        for module in _modules:
+            module.register()
+            registered.append(module)
+    except BaseException:
+        for module in reversed(registered):
+            try:
+                module.unregister()
+            except Exception as error:  # the first failure is the one to report
+                print(f"RaySplats: while undoing a failed registration, {module.__name__}: {error}")
+        raise
 
 
 def unregister():

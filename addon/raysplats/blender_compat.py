@@ -132,3 +132,10 @@ def use_multilayer_exr(image_settings):
     if IMAGE_FORMAT_HAS_MEDIA_TYPE:
         image_settings.media_type = "MULTI_LAYER_IMAGE"
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
+
+
+def prepare_gltf_importer():
+    """Blender 3.4's glTF importer calls np.bool, which numpy 1.24 removed (Debian's Blender 3.4 runs with numpy
+    1.24; fixed in Blender 3.5): the alias is restored there, so the importer can read a glTF file's meshes."""
+    if not _since(3, 5) and "bool" not in np.__dict__:
+        np.bool = bool

@@ -34,8 +34,9 @@ import bpy
 # Format names and extensions come from the add-on (which takes the splat formats from the core); it is
 # imported only once ensure_addon() has registered it.
 def _splat_formats():
+    """The formats a splat file can be converted to (the core writes them)."""
     from raysplats import io_import
-    return tuple(f["name"] for f in io_import.splat_formats())
+    return tuple(f["name"] for f in io_import.writable_splat_formats())
 
 
 def _splat_extensions():
@@ -82,8 +83,9 @@ def _parser():
         sub.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
         sub.add_argument("--vertices-per-polygon", type=int, default=8, help="K for splat inputs (default 8)")
         sub.add_argument("--radius", type=float, default=3.0, help="rho for splat inputs (default 3)")
-        sub.add_argument("--up-axis", default="AUTO", choices=("AUTO", "-Y", "Y", "Z"),
-                         help="up axis of splat inputs (default: by format)")
+        sub.add_argument("--up-axis", default="DETECT", choices=("DETECT", "AUTO", "-Y", "Y", "Z", "-Z", "X", "-X"),
+                         help="up axis of splat inputs (default DETECT: found from the data, else by format; "
+                              "AUTO: by format)")
         return sub
 
     common(commands.add_parser("import", help="splat files -> .blend"))
@@ -124,7 +126,7 @@ def _output_path(args, source, extension, count):
     <args.output>/<input stem><extension>."""
     output = args.output
     if count == 1 and os.path.splitext(output)[1] and not os.path.isdir(output):
-        if os.path.splitext(output)[1].lower() != extension:
+        if not output.lower().endswith(extension):
             raise UsageError(f"output '{output}' does not end in {extension}")
         return output
     os.makedirs(output, exist_ok=True)
@@ -277,9 +279,19 @@ def run(argv):
         extension = ".blend"
     elif args.command == "render":
         extension = ".png"
+    elif args.command == "convert":
+        # Splat formats by the core's table: "compressed_ply" is written as ".compressed.ply".
+        from raysplats import io_import
+        named = io_import.splat_format_of(args.output)
+        fmt = args.format or (named["name"] if named else "")
+        entry = next((f for f in io_import.splat_formats() if f["name"] == fmt), None)
+        if entry is None:
+            raise UsageError(f"convert: give --format ({', '.join(_splat_formats())}) or an output file with that "
+                             f"format's extension ({', '.join(_splat_extensions())})")
+        extension = entry["extensions"][0]
     else:
         fmt = args.format or os.path.splitext(args.output)[1].lower().lstrip(".")
-        choices = _mesh_formats() if args.command == "export" else _splat_formats()
+        choices = _mesh_formats()
         if fmt not in choices:
             raise UsageError(f"{args.command}: give --format ({', '.join(choices)}) or an output file with that extension")
         extension = "." + fmt

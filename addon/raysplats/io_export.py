@@ -1,4 +1,4 @@
-# File > Export > Gaussian Splats (.ply/.splat/.spz): Gaussians recovered from the evaluated objects
+# File > Export > Gaussian Splats (.ply/.splat/.spz/.compressed.ply): Gaussians recovered from the evaluated objects
 # (modifiers, object transform and SH rotation applied), written atomically by the native core.
 import os
 
@@ -7,8 +7,9 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, errors, export_scope, gaussian_mesh, modifier_checks, native
-from .io_import import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text
+from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
+from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_menu_text,
+                        writable_splat_formats)
 from .io_mesh_export import with_extension
 from .progress import StageProgress
 
@@ -18,7 +19,27 @@ class NothingToExport(ValueError):
 
 
 def gaussian_objects(context, limit_to=export_scope.DEFAULT_LIMIT_TO):
-    return [obj for obj in export_scope.objects_in_scope(context, limit_to) if gaussian_mesh.is_gaussian_object(obj)]
+    """The splat objects in scope: polygon Gaussian objects and compact splat objects."""
+    return [obj for obj in export_scope.objects_in_scope(context, limit_to)
+            if gaussian_mesh.is_gaussian_object(obj) or compact_splats.is_compact_object(obj)]
+
+
+def _object_up_axis(obj):
+    if gaussian_mesh.is_gaussian_object(obj):
+        return obj.raysplats.up_axis
+    return obj.get(native_splats.UP_AXIS_PROPERTY, "-Y")
+
+
+def _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers):
+    """One object's Gaussians mapped by mesh_to_output (its own coordinates -> the file's), with recovery stats."""
+    if gaussian_mesh.is_gaussian_object(obj):
+        return gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
+    cloud = compact_splats.evaluated_cloud(obj, depsgraph, apply_modifiers)
+    if cloud is None:
+        return dict(compact_splats.empty_cloud(0), stats={})
+    part = compact_splats.transformed_cloud(cloud, mesh_to_output)
+    part["stats"] = {}
+    return part
 
 
 def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUTO"):
@@ -28,9 +49,9 @@ def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUT
     depsgraph = context.evaluated_depsgraph_get()
     parts, stats = [], {}
     for obj in objects:
-        axis = obj.raysplats.up_axis if up_axis == "AUTO" else up_axis
+        axis = _object_up_axis(obj) if up_axis == "AUTO" else up_axis
         mesh_to_output = axes.mesh_to_file(obj, axis)
-        part = gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
+        part = _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
         for key, value in part["stats"].items():
             stats[key] = stats.get(key, 0) + value
         parts.append(part)
@@ -55,8 +76,13 @@ def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMI
     extension.
     Returns (number of Gaussians written, recovery stats and "warnings" (messages), stage timings)."""
     extension = os.path.splitext(filepath)[1].lower()
-    if splat_format_of(filepath) is None:
-        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {', '.join(splat_extensions())}")
+    splat_format = splat_format_of(filepath)
+    if splat_format is None or not splat_format.get("writable", True):
+        known = ", ".join(splat_extensions(writable_only=True))
+        if splat_format is not None:  # glTF: the Gaussians go into a glTF file through the mesh export
+            raise ValueError(f"'{filepath}': {extension} splats are written by File > Export > RaySplats Mesh with "
+                             f"KHR_gaussian_splatting; this export writes {known}")
+        raise ValueError(f"'{filepath}': unknown splat format '{extension}'; use {known}")
     objects = gaussian_objects(context, limit_to)
     if not objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects are {export_scope.describe(limit_to)}")
@@ -78,7 +104,7 @@ _format_items = []  # Blender needs the strings of dynamic enum items kept alive
 def splat_format_items(self, context):
     """The Format drop-down: one entry per format the core writes, labelled with its extension."""
     try:
-        formats = splat_formats()
+        formats = writable_splat_formats()
     except native.NativeModuleMissing:
         formats = []
     _format_items[:] = [(f["name"].upper(), f"{f['name'].upper()} ({f['extensions'][0]})", f["description"])
@@ -88,18 +114,18 @@ def splat_format_items(self, context):
 
 def format_extension(format_name):
     """The extension the core writes for a Format drop-down entry."""
-    return next(f["extensions"][0] for f in splat_formats() if f["name"].upper() == format_name)
+    return next(f["extensions"][0] for f in writable_splat_formats() if f["name"].upper() == format_name)
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
-    """Export Gaussian splat objects, with every edit applied, to a 3DGS .ply, .splat or .spz file"""
+    """Export Gaussian splat objects, with every edit applied, to a .ply, .splat, .spz or .compressed.ply file"""
 
     bl_idname = "export_scene.gaussian_splats"
     bl_label = "Export Gaussian Splats"
     bl_options = {"REGISTER", "PRESET"}
 
     filename_ext = ".ply"
-    check_extension = None  # .ply, .splat and .spz are all accepted; the extension picks the format
+    check_extension = None  # every splat extension is accepted; the extension picks the format
     filter_glob: StringProperty(default="", options={"HIDDEN"})  # set from the core's formats in invoke()
 
     limit_to: EnumProperty(name="Limit to", items=export_scope.LIMIT_TO_ITEMS, default=export_scope.DEFAULT_LIMIT_TO,
@@ -117,9 +143,9 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
     def invoke(self, context, event):
         current = splat_format_of(self.filepath) if self.filepath else None
-        if current is not None:
+        if current is not None and current.get("writable", True):
             self.export_format = current["name"].upper()
-        return open_splat_file_browser(self, ExportHelper, context, event)
+        return open_splat_file_browser(self, ExportHelper, context, event, writable_only=True)
 
     def draw(self, context):
         layout = self.layout
@@ -130,10 +156,13 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
         if self.export_format == "SPLAT":
             # The format's own limit, said where it is chosen rather than discovered in a viewer.
             layout.label(text=".splat keeps no view-dependent colour (SH bands)", icon="INFO")
+        elif self.export_format == "COMPRESSED_PLY":
+            layout.label(text="Quantised: 11-bit positions per 256 splats,", icon="INFO")
+            layout.label(text="8-bit colour, opacity and SH bands")
 
     def check(self, context):
         # The extension follows the Format drop-down; True redraws the file browser.
-        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions())
+        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions(True))
         changed = filepath != self.filepath
         self.filepath = filepath
         return changed

@@ -1,11 +1,12 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz): one mesh object, one polygon per Gaussian.
+# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply/.glb/.gltf): one mesh object, one polygon per
+# Gaussian (a glTF file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from . import axes, blender_compat, errors, gaussian_mesh, material, native
+from . import axes, blender_compat, errors, gaussian_mesh, io_gltf, material, native
 from .progress import StageProgress
 
 
@@ -17,25 +18,33 @@ def splat_formats():
 
 
 def splat_format_of(filepath):
-    """The core's entry for the format the file's extension names, or None."""
-    extension = os.path.splitext(filepath)[1].lower()
-    return next((f for f in splat_formats() if extension in f["extensions"]), None)
+    """The core's entry for the format the file's extension names, or None. The longest extension the name ends
+    with decides: "scene.compressed.ply" is a compressed PLY, "scene.ply" an INRIA one."""
+    name = filepath.lower()
+    matches = [(len(extension), f) for f in splat_formats() for extension in f["extensions"] if name.endswith(extension)]
+    return max(matches, key=lambda match: match[0])[1] if matches else None
 
 
-def splat_extensions():
-    return tuple(extension for f in splat_formats() for extension in f["extensions"])
+def writable_splat_formats():
+    """The entries of splat_formats() the core also writes (glTF splats are read here, written by the mesh export)."""
+    return [f for f in splat_formats() if f.get("writable", True)]
 
 
-def splat_file_browser_filter():
-    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz"."""
-    return ";".join("*" + extension for extension in splat_extensions())
+def splat_extensions(writable_only=False):
+    formats = writable_splat_formats() if writable_only else splat_formats()
+    return tuple(extension for f in formats for extension in f["extensions"])
 
 
-def open_splat_file_browser(operator, helper, context, event):
+def splat_file_browser_filter(writable_only=False):
+    """The file browser's filter_glob for splat files: "*.ply;*.splat;*.spz;…"."""
+    return ";".join("*" + extension for extension in splat_extensions(writable_only))
+
+
+def open_splat_file_browser(operator, helper, context, event, writable_only=False):
     """The invoke() of a splat import/export operator: the file browser (ImportHelper's or ExportHelper's)
-    filtered to the core's formats; without the native module, the error instead."""
+    filtered to the core's formats (those it writes, for an export); without the native module, the error instead."""
     try:
-        operator.filter_glob = splat_file_browser_filter()
+        operator.filter_glob = splat_file_browser_filter(writable_only)
     except native.NativeModuleMissing as error:
         operator.report({"ERROR"}, str(error))
         return {"CANCELLED"}
@@ -59,38 +68,104 @@ def memory_size_text(n):
     return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.0f} MB"
 
 
-def check_import_memory(core, filepath, vertices_per_polygon, max_count=0):
-    """Raises NotEnoughMemory, before anything is read or allocated, when the Gaussians the file's header declares
-    (at most max_count of them) need more memory than the machine has available. Returns the estimate in bytes."""
+# Import representations (compact_splats.py): AUTO picks polygons for scenes they suit, compact points beyond.
+REPRESENTATION_ITEMS = (
+    ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
+                          "beyond"),
+    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 1 KB per "
+                                      "Gaussian, and about 5 KB in Edit Mode)"),
+    ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
+                                 "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
+)
+# Above this many Gaussians AUTO imports compact points: Blender's Edit Mode costs about 5 KB per polygon Gaussian
+# (issue 17: 9.3 GB and 13.8 s to enter it on 1.5 M), so bigger scenes are edited a region at a time.
+AUTO_POLYGON_LIMIT = 3_000_000
+
+
+def _not_enough(filepath, count, needed, available, advice):
+    return NotEnoughMemory(f"'{filepath}': not enough memory to import {count:,} Gaussians (needs about "
+                           f"{memory_size_text(needed)}, {memory_size_text(available)} available); {advice}")
+
+
+def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, representation="POLYGONS"):
+    """Which representation the import uses ("POLYGONS" or "POINTS"; AUTO resolved) and its memory estimate in bytes,
+    from the file's header alone. Raises NotEnoughMemory, before anything is read or allocated, when the Gaussians
+    the file declares (at most max_count of them) need more memory than the machine has available; AUTO falls back
+    to compact points when polygons would not fit. Returns (representation, bytes, note for the user or None)."""
     summary = core.probe_splat_file(filepath)
     count = min(summary["count"], max_count) if max_count > 0 else summary["count"]
-    needed = core.import_memory_bytes(count, summary["sh_degree"], vertices_per_polygon)
-    available = core.available_memory_bytes()
-    if available and needed > available:
-        raise NotEnoughMemory(f"'{filepath}': not enough memory to import {count:,} Gaussians (needs about "
-                              f"{memory_size_text(needed)}, {memory_size_text(available)} available); set Maximum Count or "
-                              f"Minimum Opacity to import fewer, or use fewer Polygon Vertices")
-    return needed
+    polygons = core.import_memory_bytes(count, summary["sh_degree"], vertices_per_polygon)
+    points = core.compact_import_memory_bytes(count, summary["sh_degree"])
+    available = core.available_memory_bytes() or float("inf")
+    limit = "set Maximum Count or Minimum Opacity to import fewer"
+    if representation == "POINTS":
+        if points > available:
+            raise _not_enough(filepath, count, points, available, limit)
+        return "POINTS", points, None
+    if representation == "AUTO" and (count > AUTO_POLYGON_LIMIT or polygons > available):
+        if points > available:
+            raise _not_enough(filepath, count, points, available, limit)
+        why = (f"as polygons they would need about {memory_size_text(polygons)} "
+               f"({memory_size_text(available)} available)" if polygons > available
+               else f"more than {AUTO_POLYGON_LIMIT:,} Gaussians are edited a region at a time")
+        return "POINTS", points, (f"imported as compact points ({why}); select a region in Edit Mode and use Edit "
+                                  "Selected as Polygons to edit it")
+    if polygons > available:
+        raise _not_enough(filepath, count, polygons, available,
+                          f"{limit}, use fewer Polygon Vertices, or import as Compact Points (about "
+                          f"{memory_size_text(points)})")
+    return "POLYGONS", polygons, None
 
 
-def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="AUTO",
-                           min_opacity=0.0, max_count=0):
-    """Imports a splat file as a new Gaussian object in the active collection.
+def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="DETECT",
+                           min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS"):
+    """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
+    (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
+    file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
+    format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
     Returns (object, warnings, stage timings). Raises on bad input or too little memory; nothing is added then
     (a failure at any step leaves no mesh or object behind)."""
+    from . import compact_splats  # (it imports this module)
+
     core = native.core()
-    up_axis = axes.resolve_import_up_axis(up_axis, splat_format_of(filepath))
-    name = os.path.splitext(os.path.basename(filepath))[0] or "Gaussians"
-    needed = check_import_memory(core, filepath, vertices_per_polygon, max_count)
+    splat_format = splat_format_of(filepath)
+    base = os.path.basename(filepath)
+    extension = next((e for e in sorted(splat_extensions(), key=len, reverse=True) if base.lower().endswith(e)),
+                     os.path.splitext(base)[1])
+    name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
+    representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
+                                                       representation)
     obj = None
     with StageProgress(getattr(context, "window_manager", None), "RaySplats import", 4) as progress:
         try:
             progress.stage("read file")
+            # Held in a list so that add_gaussian_object gets the only reference (holder.pop()) and can release it.
+            holder = [core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count)]
+            estimate = None
+            if axes.detection_wanted(up_axis, splat_format):
+                cloud = holder[0]
+                estimate = core.estimate_up_axis(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                 cloud["opacities"])
+                del cloud
+            resolved = axes.resolve_import_up_axis(up_axis, splat_format, estimate)
+            if estimate is not None:
+                print(f"RaySplats: {os.path.basename(filepath)}: up axis {resolved} ("
+                      f"{'found from the data' if estimate['decided'] else 'no clear ground in the data: convention'}; "
+                      f"best {estimate['axis']}, margin {estimate['margin']:.2f})")
             # The cloud is handed over, not kept: add_gaussian_object releases it once the polygons hold it.
-            obj, warnings = add_gaussian_object(
-                context, name, core.read_splats(filepath, min_opacity=min_opacity, max_count=max_count),
-                vertices_per_polygon, radius, up_axis, filepath, progress)
-            obj.rotation_euler = (axes.object_rotation_x(up_axis), 0.0, 0.0)
+            if representation == "POINTS":
+                cloud = holder.pop()
+                warnings = list(cloud.get("warnings", ())) + ([note] if note else [])
+                progress.stage("fill Blender points")
+                obj = compact_splats.add_compact_object(context, name, cloud, resolved, filepath)
+                del cloud
+            else:
+                obj, warnings = add_gaussian_object(context, name, holder.pop(), vertices_per_polygon, radius,
+                                                    resolved, filepath, progress)
+            obj.rotation_euler = axes.object_rotation_euler(resolved)
+            if gltf_meshes and splat_format is not None and splat_format["name"] == "gltf":
+                io_gltf.import_gltf_meshes(context, filepath)
+                context.view_layer.objects.active = obj
         except BaseException as error:
             # Whatever step failed, nothing half-imported stays (add_gaussian_object cleans up its own failures).
             if obj is not None:
@@ -153,11 +228,11 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
 
 
 def remove_gaussian_object(obj):
-    """Removes an object add_gaussian_object made, with its mesh (the import failed after it)."""
-    mesh = obj.data
+    """Removes an object an import made, with its mesh or point cloud (the import failed after it)."""
+    data = obj.data
     bpy.data.objects.remove(obj)
-    if mesh is not None and mesh.users == 0:
-        bpy.data.meshes.remove(mesh)
+    if data is not None and data.users == 0:
+        (bpy.data.meshes if isinstance(data, bpy.types.Mesh) else bpy.data.pointclouds).remove(data)
 
 
 def show_splat_colors_in_solid_views(context, obj):
@@ -212,8 +287,14 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         name="Polygon Radius", default=3.0, min=0.5, max=6.0,
         description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")
     up_axis: EnumProperty(
-        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="AUTO",
+        name="Up Axis", items=axes.IMPORT_UP_AXIS_ITEMS, default="DETECT",
         description="Up direction in the file; the object is rotated (not baked) so that it stands upright")
+    representation: EnumProperty(
+        name="Import As", items=REPRESENTATION_ITEMS, default="AUTO",
+        description="How the Gaussians are held in Blender: editable polygons, or compact points for big scenes")
+    gltf_meshes: BoolProperty(
+        name="glTF Meshes", default=True,
+        description="For .glb/.gltf files: also import the file's meshes (not its splats) with Blender's glTF importer")
     min_opacity: FloatProperty(
         name="Minimum Opacity", default=0.0, min=0.0, max=1.0,
         description="Gaussians less opaque than this are not imported (0 imports all)")
@@ -237,8 +318,9 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        for heading, names in (("Polygons", ("vertices_per_polygon", "radius", "up_axis")),
+        for heading, names in (("Polygons", ("representation", "vertices_per_polygon", "radius", "up_axis")),
                                ("Limit", ("min_opacity", "max_count")),
+                               ("glTF", ("gltf_meshes",)),
                                ("Viewport", ("color_solid_views", "preview_samples"))):
             box = layout.box()
             box.label(text=heading)
@@ -257,13 +339,22 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         imported = []
         for path in self.selected_paths():
             obj, warnings, _ = import_gaussian_splats(
-                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count)
+                context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count,
+                self.gltf_meshes, self.representation)
             imported.append(obj)
-            if self.color_solid_views:
+            polygons = gaussian_mesh.is_gaussian_object(obj)
+            if self.color_solid_views and polygons:
                 show_splat_colors_in_solid_views(context, obj)
             for warning in warnings:
                 self.report({"WARNING"}, f"{os.path.basename(path)}: {warning}")
-            self.report({"INFO"}, f"Imported {len(obj.data.polygons):,} Gaussians from {os.path.basename(path)}")
+            if polygons:
+                count, up_axis, form = len(obj.data.polygons), obj.raysplats.up_axis, ""
+            else:
+                from .native_splats import UP_AXIS_PROPERTY
+                count = len(getattr(obj.data, "points", obj.data.vertices))
+                up_axis, form = obj.get(UP_AXIS_PROPERTY, "-Y"), " as compact points"
+            self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}{form} "
+                                  f"(up axis {up_axis})")
         for obj in imported:  # all of them selected, the last one active (import_gaussian_splats selects only its own)
             obj.select_set(True)
         raise_material_preview_samples(context.scene, self.preview_samples)

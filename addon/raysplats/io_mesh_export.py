@@ -9,7 +9,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
+from . import axes, compact_splats, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
 from .progress import StageProgress
 
 MESH_EXTENSIONS = (".obj", ".ply", ".gltf", ".glb")
@@ -49,9 +49,11 @@ def mesh_format_of(filepath):
 
 
 def with_extension(filepath, extension, known_extensions):
-    """`filepath` ending in `extension`: a known extension is replaced, anything else kept and the extension added."""
-    root, current = os.path.splitext(filepath)
-    return (root if current.lower() in known_extensions else filepath) + extension
+    """`filepath` ending in `extension`: a known extension (the longest it ends with, so that ".compressed.ply" goes
+    whole) is replaced, anything else kept and the extension added."""
+    name = filepath.lower()
+    current = max((known for known in known_extensions if name.endswith(known)), key=len, default="")
+    return filepath[:len(filepath) - len(current)] + extension
 
 
 class NothingToExport(ValueError):
@@ -178,8 +180,10 @@ def export_mesh_file(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, 
     if not objects:
         raise NothingToExport(f"Nothing to export: no objects are {export_scope.describe(limit_to)}")
     gaussian_objects = [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
+    # Compact splat objects are points, not surfaces: they export through File > Export > Gaussian Splats (or as
+    # polygons after Object > Convert > RaySplats Gaussians).
     mesh_objects = [obj for obj in objects if include_meshes and obj.type in MESH_LIKE_TYPES
-                    and not gaussian_mesh.is_gaussian_object(obj)]
+                    and not gaussian_mesh.is_gaussian_object(obj) and not compact_splats.is_compact_object(obj)]
     if not gaussian_objects and not mesh_objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects or meshes are "
                               f"{export_scope.describe(limit_to)}")

@@ -40,9 +40,26 @@ def fidelity_warnings(obj, for_render):
     return topology_warnings(obj, for_render) + corner_only_apply_warnings(obj)
 
 
+def compact_warnings(obj, for_render):
+    """One message per enabled modifier of a compact splat object (compact_splats.py): a modifier moves its points,
+    the Gaussians' centres, and leaves their shapes and orientations as they are in the object, which a bend, a
+    non-uniform scale or a shape key does not mean."""
+    return [f"'{obj.name}': modifier '{modifier.name}' moves only the centres of its compact splats; their shapes "
+            "and orientations stay as they are (to deform them, edit the region as polygons: Edit Selected as "
+            "Polygons)"
+            for modifier in getattr(obj, "modifiers", ())
+            if (modifier.show_render if for_render else modifier.show_viewport)]
+
+
 def export_warnings(objects, apply_modifiers):
     """fidelity_warnings() of the Gaussian objects among `objects` an export writes (modifiers only when applied)."""
+    from .compact_splats import is_compact_object
     from .gaussian_mesh import is_gaussian_object
-    return [message for obj in objects if is_gaussian_object(obj)
-            for message in (topology_warnings(obj, for_render=False) if apply_modifiers else [])
-            + corner_only_apply_warnings(obj)]
+    messages = []
+    for obj in objects:
+        if is_gaussian_object(obj):
+            messages += (topology_warnings(obj, for_render=False) if apply_modifiers else []) \
+                + corner_only_apply_warnings(obj)
+        elif is_compact_object(obj) and apply_modifiers:
+            messages += compact_warnings(obj, for_render=False)
+    return messages

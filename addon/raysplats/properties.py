@@ -38,6 +38,17 @@ class RaySplatsObjectSettings(bpy.types.PropertyGroup):
                        soft_max=0.5)
     temperature: FloatProperty(name="Temperature", description="Warmer (positive) or cooler (negative) colours",
                                default=0.0, min=-1.0, max=1.0)
+    # How the RaySplats renderer produces this object's colours; SCENE follows Render Properties > Gaussians >
+    # Shading (engine.sync passes None for it).
+    gaussian_shading: EnumProperty(
+        name="Shading", default="SCENE",
+        items=(("SCENE", "Scene Default", "As Render Properties > Gaussians > Shading"),
+               ("BAKED", "Baked", "The captured light, as trained: scene lights do not change it"),
+               ("LIT", "Lit", "Each splat is a surface lit by the scene's lights and world, with shadows (its "
+                              "colour, with the capture's light divided out, is its albedo)"),
+               ("BAKED_SHADOWED", "Baked + Shadows", "The captured light, darkened where meshes and splats hide "
+                                                     "the scene's lights")),
+        description="How the RaySplats renderer colours this object's splats")
 
 
 def register():

@@ -167,6 +167,14 @@ def _adjustments_edited():
         obj.update_tag()
 
 
+def _shading_edited():
+    """An object's Gaussian shading was edited (message bus): tag the Gaussian objects so that the Rendered viewport
+    re-syncs them (engine.sync applies the new shading in place)."""
+    for obj in bpy.data.objects:
+        if gaussian_mesh.is_gaussian_object(obj):
+            obj.update_tag()
+
+
 def subscribe_to_adjustments():
     """Message-bus subscriptions to the colour adjustments of every object's settings. The message bus, not update=
     callbacks: a property with an update callback makes Blender 4.2 as a Python module (the bpy wheel the tests run)
@@ -176,6 +184,8 @@ def subscribe_to_adjustments():
     for name in color_adjustment.ADJUSTMENT_NAMES:
         bpy.msgbus.subscribe_rna(key=(RaySplatsObjectSettings, name), owner=_msgbus_owner, args=(),
                                  notify=_adjustments_edited)
+    bpy.msgbus.subscribe_rna(key=(RaySplatsObjectSettings, "gaussian_shading"), owner=_msgbus_owner, args=(),
+                             notify=_shading_edited)
 
 
 def forget_objects():

@@ -3,15 +3,28 @@
 # Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
 import bpy
 
-from . import gaussian_mesh, splat_selection, splat_tools, splat_transform
+from . import compact_splats, gaussian_mesh, native_splats, splat_selection, splat_tools, splat_transform
 
 SIDEBAR_CATEGORY = "Splats"
+
+
+def _draw_compact_settings(layout, obj):
+    """A compact splat object (one point per Gaussian): what it is, and the way to edit a region of it."""
+    column = layout.column()
+    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as compact points")
+    column.label(text=f"Up axis in the file: {obj.get(native_splats.UP_AXIS_PROPERTY, '-Y')}")
+    layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
+    if obj.mode != "EDIT":
+        layout.label(text="Select a region's points in Edit Mode first", icon="INFO")
 
 
 def _draw_settings(layout, obj):
     settings = obj.raysplats
     layout.use_property_split = True
     layout.use_property_decorate = False
+    if compact_splats.is_compact_object(obj):
+        _draw_compact_settings(layout, obj)
+        return
     if not settings.is_gaussian:
         # Marking reads K, rho and the SH degree back from the splat data, which a bare check box would not.
         if obj.type == "MESH" and obj.data.attributes.get(gaussian_mesh.ATTR_REST_SCALE) is not None:
@@ -32,6 +45,11 @@ def _draw_settings(layout, obj):
     column.prop(settings, "sh_degree")
     layout.prop(settings, "source_file")
     layout.prop(settings, "up_axis")
+    layout.prop(settings, "gaussian_shading")
+    target = compact_splats.region_target(obj)
+    if target is not None:
+        layout.operator(compact_splats.OBJECT_OT_raysplats_merge_region.bl_idname,
+                        text=f"Merge Back into '{target.name}'", icon="POINTCLOUD_DATA")
 
 
 def _draw_colors(layout, obj):
@@ -53,7 +71,7 @@ class OBJECT_PT_raysplats(bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return context.object is not None and context.object.type == "MESH"
+        return context.object is not None and context.object.type in {"MESH", "POINTCLOUD"}
 
     def draw(self, context):
         _draw_settings(self.layout, context.object)
@@ -89,7 +107,7 @@ class VIEW3D_PT_raysplats(_SidebarPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return context.active_object is not None and context.active_object.type == "MESH"
+        return context.active_object is not None and context.active_object.type in {"MESH", "POINTCLOUD"}
 
     def draw(self, context):
         _draw_settings(self.layout, context.active_object)
@@ -162,6 +180,9 @@ def _draw_mesh_menu(self, context):
     if gaussian_mesh.is_gaussian_object(context.edit_object):
         self.layout.separator()
         self.layout.menu(VIEW3D_MT_raysplats_mesh.__name__)
+    elif compact_splats.is_compact_object(context.edit_object):
+        self.layout.separator()
+        self.layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname)
 
 
 def _draw_exact_apply(layout):

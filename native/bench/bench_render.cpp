@@ -221,6 +221,10 @@ int main(int argc, char** argv) {
         st.transparent_background = true;
         if (const char* k = std::getenv("RAYSPLATS_BENCH_K")) st.gather_buffer_size = std::atoi(k);
         if (const char* t = std::getenv("RAYSPLATS_BENCH_TILE")) st.tile_size = std::atoi(t);
+        // RAYSPLATS_BENCH_BLEND=linear|display: the blend space (default: the settings' default).
+        if (const char* b = std::getenv("RAYSPLATS_BENCH_BLEND"))
+            st.blend_space = std::string(b) == "linear" ? BlendSpace::Linear : BlendSpace::Display;
+        std::printf("blend space     %s\n", st.blend_space == BlendSpace::Linear ? "linear" : "display");
         const double rays = double(width) * height;
 
         auto run = [&](const GaussianCloud& c, Compositing comp, GaussianMode mode, double& build, bool print) {

@@ -12,9 +12,11 @@
 #include "conversions.h"
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
+#include "raysplats/gaussian_transform.h"
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
 #include "raysplats/splat_io.h"
+#include "raysplats/up_axis.h"
 
 namespace py = pybind11;
 using namespace pybind11::literals;
@@ -31,9 +33,25 @@ py::list splat_formats() {
         py::list extensions;
         for (const char* e : f.extensions) extensions.append(e);
         out.append(py::dict("name"_a = f.name, "extensions"_a = extensions, "description"_a = f.description,
-                            "up_axis"_a = f.up_axis));
+                            "up_axis"_a = f.up_axis, "up_axis_by_specification"_a = f.up_axis_by_specification, "writable"_a = f.writable));
     }
     return out;
+}
+
+py::dict estimate_up_axis(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                          const FloatArray& opacities) {
+    const std::size_t n = std::size_t(opacities.size());
+    raysplats::GaussianCloud cloud = cloud_from_arrays(positions, rotations, scales, opacities,
+                                                       FloatArray(std::vector<py::ssize_t>{py::ssize_t(n), 1, 3}));
+    raysplats::UpAxisEstimate e;
+    {
+        py::gil_scoped_release release;
+        e = raysplats::estimate_up_axis(cloud);
+    }
+    py::dict scores;
+    for (std::size_t k = 0; k < 6; ++k) scores[raysplats::UpAxisEstimate::kAxisNames[k]] = e.scores[k];
+    return py::dict("axis"_a = e.axis(), "decided"_a = e.decided, "margin"_a = e.margin, "scores"_a = scores,
+                    "flat_gaussians"_a = e.flat_gaussians);
 }
 
 py::dict read_splats(const std::string& path, float min_opacity, std::size_t max_count) {
@@ -155,6 +173,17 @@ py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const I
     return to_numpy(std::move(reversed), {faces});
 }
 
+py::dict transform_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
+                             const FloatArray& opacities, const FloatArray& sh, const DoubleArray& matrix) {
+    require_shape(matrix, "matrix", {4, 4});
+    raysplats::GaussianCloud cloud = cloud_from_arrays(positions, rotations, scales, opacities, sh);
+    {
+        py::gil_scoped_release release;
+        cloud = raysplats::transform_gaussians(cloud, matrix.data());
+    }
+    return cloud_to_dict(std::move(cloud));
+}
+
 py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& corner_vertices,
                            const IntArray& face_corner_start, const IntArray& face_corner_count,
                            int vertices_per_polygon, float radius, const DoubleArray& mesh_to_output,
@@ -215,7 +244,7 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
     m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz file. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
+          "Reads a .ply/.splat/.spz/.compressed.ply file, or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
           "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);
@@ -226,15 +255,21 @@ PYBIND11_MODULE(_native, m) {
           "sh_degree. Raises FileFormatError like read_splats for a file refused at its header.");
     m.def("import_memory_bytes", &raysplats::import_memory_bytes, "count"_a, "sh_degree"_a, "vertices_per_polygon"_a,
           "Estimated peak bytes of importing count Gaussians as polygons (cloud, polygons, the mesh and its undo copy).");
+    m.def("compact_import_memory_bytes", &raysplats::compact_import_memory_bytes, "count"_a, "sh_degree"_a,
+          "Estimated peak bytes of importing count Gaussians as a compact splat object (one point per Gaussian).");
     m.def("available_memory_bytes", &raysplats::available_memory_bytes,
           "Bytes that can be allocated without swapping (MemAvailable, within the cgroup limit); 0 if unknown.");
     m.def("write_splats", &write_splats, "path"_a, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
-          "Writes Gaussians atomically; the format comes from the extension (.ply, .splat, .spz).");
+          "Writes Gaussians atomically; the format comes from the extension (.ply, .splat, .spz, .compressed.ply).");
     m.def("gaussians_to_polygons", &gaussians_to_polygons, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
           "sh"_a, "vertices_per_polygon"_a = 8, "radius"_a = 3.0f,
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "
           "face attributes (the Gaussian's rest values, opacity, rho_i) and corner colours/UVs (DESIGN §5); "
           "invisible_skipped counts the Gaussians with opacity below 1/255, which get no face.");
+    m.def("transform_gaussians", &transform_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
+          "matrix"_a,
+          "The Gaussians mapped by an affine 4x4 matrix exactly (centres, covariances A Σ Aᵀ, SH turned by the "
+          "matrix's rotation); the identity returns them unchanged.");
     m.def("recover_gaussians", &recover_gaussians, "vertex_positions"_a, "corner_vertices"_a, "face_corner_start"_a,
           "face_corner_count"_a, "vertices_per_polygon"_a, "radius"_a, "mesh_to_output"_a, "opacity"_a = py::none(),
           "thickness"_a = py::none(), "polygon_radius"_a = py::none(), "sh_local"_a = py::none(),
@@ -253,9 +288,25 @@ PYBIND11_MODULE(_native, m) {
           "corner_vertices"_a, "face_corner_start"_a, "face_corner_count"_a,
           "Faces (ascending uint32) with a corner on a vertex whose position differs bit for bit from "
           "previous_positions (the same mesh before an edit that kept its topology).");
+    m.def("estimate_up_axis", &estimate_up_axis, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
+          "Which way is up, from the Gaussians alone (raysplats/up_axis.h: the supporting plane of flat Gaussians): "
+          "dict of axis ('X', '-X', 'Y', '-Y', 'Z', '-Z'), decided (False: no clear supporting plane), margin "
+          "((best - second) / best), scores per axis, flat_gaussians.");
+    m.def("gltf_contents", [](const std::string& path) {
+              raysplats::GltfContents c;
+              {
+                  py::gil_scoped_release release;
+                  c = raysplats::gltf_contents(path);
+              }
+              return py::dict("splat_primitives"_a = c.splat_primitives, "other_primitives"_a = c.other_primitives,
+                              "splat_only_meshes"_a = c.splat_only_meshes);
+          }, "path"_a,
+          "What a glTF file holds: splat_primitives (KHR_gaussian_splatting), other_primitives, and the names of the "
+          "meshes that hold only splat primitives. Raises FileFormatError for a file that is not valid glTF.");
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
-          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format)}.");
+          "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), up_axis_by_specification "
+          "(True when the format's specification fixes up, as glTF's +Y), writable (False: read only)}.");
     m.attr("NEW_FACE_OPACITY") = raysplats::kNewFaceOpacity;
     register_render_bindings(m);
     register_mesh_export(m);

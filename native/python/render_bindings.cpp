@@ -176,6 +176,13 @@ struct RenderScene {
         shared.change()->set_gaussians_transform(index, matrix_from(matrix, "matrix"));
     }
 
+    // `shading`: a name of gaussian_shading_names(), or None to follow the render setting gaussian_shading.
+    void set_gaussian_shading(std::uint32_t index, const std::optional<std::string>& shading) {
+        std::optional<raysplats::GaussianShading> value;
+        if (shading) value = raysplats::gaussian_shading_names().value_of(*shading);
+        shared.change()->set_gaussian_shading(index, value);
+    }
+
     std::uint32_t add_light(const std::string& type, const py::object& color, float power, const py::object& matrix,
                             float spot_size, float spot_blend, float size_x, float size_y, float sun_angle) {
         raysplats::Light l;
@@ -307,6 +314,9 @@ void register_render_bindings(py::module_& m) {
              "build recomputes only them and rebuilds only the chunks that hold them")
         .def("set_gaussians_matrix", &RenderScene::set_gaussians_matrix, "index"_a, "matrix"_a,
              "Moves Gaussian cloud `index`; the next build changes only instance transforms")
+        .def("set_gaussian_shading", &RenderScene::set_gaussian_shading, "index"_a, "shading"_a = py::none(),
+             "Gaussian cloud `index`'s own shading (BAKED, LIT, BAKED_SHADOWED), or None for the render setting "
+             "gaussian_shading")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")

@@ -110,7 +110,12 @@ class Conversions(unittest.TestCase):
 
     def test_vocabularies(self):
         formats = {f["name"]: f for f in _native.splat_formats()}
-        self.assertEqual(sorted(formats), ["ply", "splat", "spz"])
+        self.assertLessEqual({"ply", "splat", "spz", "gltf", "compressed_ply"}, set(formats))
+        self.assertEqual(formats["gltf"]["extensions"], [".glb", ".gltf"])
+        self.assertEqual(formats["compressed_ply"]["extensions"], [".compressed.ply"])
+        # glTF's +Y up is its specification's, not a habit: the import's automatic up axis takes it at its word.
+        self.assertTrue(formats["gltf"]["up_axis_by_specification"])
+        self.assertFalse(formats["ply"]["up_axis_by_specification"])
         self.assertEqual(formats["spz"]["extensions"], [".spz"])
         self.assertEqual(formats["spz"]["up_axis"], "-Y")  # read in the core's RDF, like .ply
         self.assertIn("FISHEYE_EQUISOLID", [m["name"] for m in _native.camera_models()])

@@ -99,3 +99,34 @@ TEST(Film, NoiseEstimateIsCyclesErrorOfTheOddHalf) {
     one.add_sample(0, 0, 0, sample(0.5f, 0.5f, 1.0f, 0.0f));
     EXPECT_TRUE(std::isinf(one.noise_estimate(0, 0)));
 }
+
+// Display blend space: the estimate compares pixel values combined as the film combines them (SampleRecord:
+// linear(mean D + mean T display(mean(T L_behind) / mean T))), not the samples' linear `radiance` (here 0, which
+// would call the pixel converged). Even samples see a Gaussian run (D 0.5, T 0.5 over L_behind 0.2), odd ones only
+// L_behind 0.2: I = linear(0.25 + 0.75 srgb(0.2)), A = 0.2 in each channel; a pixel whose samples agree: 0.
+TEST(Film, NoiseEstimateInDisplayBlendSpaceUsesTheFilmsPixelValue) {
+    auto display_sample = [](float d, float t, float behind) {
+        SampleRecord s;
+        s.display_blend = true;
+        s.display_radiance = {d, d, d};
+        s.display_transmittance = t;
+        s.behind_radiance = {t * behind, t * behind, t * behind};
+        s.alpha = 1.0f - t;
+        return s;
+    };
+    FilmTile tile(0, 0, 2, 1, /*noise_estimates=*/true);
+    for (int s = 0; s < 4; ++s) {
+        tile.add_sample(0, 0, s, s % 2 == 0 ? display_sample(0.5f, 0.5f, 0.2f) : display_sample(0.0f, 1.0f, 0.2f));
+        tile.add_sample(1, 0, s, display_sample(0.5f, 0.5f, 0.2f));
+    }
+    auto srgb = [](double l) { return l <= 0.0031308 ? 12.92 * l : 1.055 * std::pow(l, 1.0 / 2.4) - 0.055; };
+    auto linear = [](double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); };
+    const double i = linear(0.25 + 0.75 * srgb(0.2)), a = 0.2;
+    EXPECT_NEAR(tile.noise_estimate(0, 0), 3.0 * (i - a) / (0.0001 + 3.0 * i), 2e-3);
+    EXPECT_NEAR(tile.noise_estimate(1, 0), 0.0, 1e-6);
+    // The same value the film holds.
+    Film film;
+    film.resize(2, 1);
+    tile.write_to(film, /*transparent_background=*/true);
+    EXPECT_NEAR(film.rgba()[0], i, 2e-3);
+}

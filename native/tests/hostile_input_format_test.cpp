@@ -165,5 +165,63 @@ TEST(HostileInput, PlyElementWithoutPropertiesAndHugeCount) {
     expect_refused_cheaply(path, {"element 'nothing' declares 18446744073709551615 records but no properties", "at byte 21"});
 }
 
+// A 300-byte .glb whose splat accessors claim a billion splats in a 16-byte buffer (so do its attributes sharing one
+// accessor, which the extension allows), and one whose buffer claims 4 GiB in a 16-byte BIN chunk: refused before
+// any splat is allocated.
+std::string minimal_splat_glb(std::uint64_t count, std::uint64_t buffer_length) {
+    const std::string json =
+        "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_gaussian_splatting\"],"
+        "\"buffers\":[{\"byteLength\":" + std::to_string(buffer_length) + "}],"
+        "\"bufferViews\":[{\"buffer\":0,\"byteLength\":16}],"
+        "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":" + std::to_string(count) + ",\"type\":\"VEC3\"},"
+        "{\"bufferView\":0,\"componentType\":5126,\"count\":" + std::to_string(count) + ",\"type\":\"VEC4\"},"
+        "{\"bufferView\":0,\"componentType\":5126,\"count\":" + std::to_string(count) + ",\"type\":\"SCALAR\"}],"
+        "\"meshes\":[{\"primitives\":[{\"mode\":0,\"attributes\":{\"POSITION\":0,"
+        "\"KHR_gaussian_splatting:ROTATION\":1,\"KHR_gaussian_splatting:SCALE\":0,\"KHR_gaussian_splatting:OPACITY\":2,"
+        "\"KHR_gaussian_splatting:SH_DEGREE_0_COEF_0\":0},"
+        "\"extensions\":{\"KHR_gaussian_splatting\":{\"kernel\":\"ellipse\",\"colorSpace\":\"srgb_rec709_display\"}}}]}],"
+        "\"nodes\":[{\"mesh\":0}],\"scenes\":[{\"nodes\":[0]}],\"scene\":0}";
+    std::string padded = json;
+    while (padded.size() % 4) padded += ' ';
+    std::vector<std::uint8_t> b;
+    b.insert(b.end(), {'g', 'l', 'T', 'F'});
+    put_u32(b, 2), put_u32(b, std::uint32_t(12 + 8 + padded.size() + 8 + 16));
+    put_u32(b, std::uint32_t(padded.size())), put_u32(b, 0x4E4F534Au);
+    b.insert(b.end(), padded.begin(), padded.end());
+    put_u32(b, 16), put_u32(b, 0x004E4942u);
+    b.resize(b.size() + 16, 0);
+    return std::string(b.begin(), b.end());
+}
+
+TEST(HostileInput, GltfAccessorsClaimABillionSplatsInSixteenBytes) {
+    const std::string path = tmp_path("hostile_billion_splats.glb");
+    write_text(path, minimal_splat_glb(1000000000, 16));
+    expect_refused_cheaply(path, {"POSITION", "1000000000 elements do not fit in its bufferView of 16 bytes"});
+    // The same file with one splat is read: the refusal above is the count's, not the layout's.
+    write_text(path, minimal_splat_glb(1, 16));
+    EXPECT_EQ(read_splat_file(path).size(), 1u);
+}
+
+TEST(HostileInput, GltfBufferClaimsMoreThanItsBinChunk) {
+    const std::string path = tmp_path("hostile_gltf_buffer.glb");
+    write_text(path, minimal_splat_glb(1, std::uint64_t(1) << 32));
+    expect_refused_cheaply(path, {"not a valid glTF file"});
+}
+
+// A SuperSplat compressed PLY of 600 bytes whose header claims 100 M splats: refused at the chunk table, before any allocation.
+TEST(HostileInput, CompressedPlyClaims100MSplats) {
+    std::string text = "ply\nformat binary_little_endian 1.0\nelement chunk 390625\n";
+    for (const char* p : {"min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x", "min_scale_y", "min_scale_z",
+                          "max_scale_x", "max_scale_y", "max_scale_z"})
+        text += std::string("property float ") + p + "\n";
+    text += "element vertex 100000000\nproperty uint packed_position\nproperty uint packed_rotation\n"
+            "property uint packed_scale\nproperty uint packed_color\nend_header\n";
+    text += std::string(64, '\0');
+    const std::string path = tmp_path("hostile_100M_splats.compressed.ply");
+    write_text(path, text);
+    expect_refused_cheaply(path, {"file is truncated", "element 'chunk' declares 390625 records of 48 bytes",
+                                  "only 64 bytes follow"});
+}
+
 }  // namespace
 }  // namespace raysplats

@@ -188,7 +188,9 @@ TEST(RenderApi, DeterministicRegardlessOfThreads) {
     }
 }
 
-// Cancelling mid-render returns within a fraction of a second with stats.cancelled; progress is monotonic.
+// Cancelling mid-render returns promptly with stats.cancelled; progress is monotonic. The cancel comes once the
+// first sample pass is done (progress reaches 1 / samples; passes are barriers), whatever the machine's load, and
+// "promptly" is bounded loosely (10 s against the minutes of 100000 samples), as a loaded machine stretches it.
 TEST(RenderApi, CancellationStopsPromptly) {
     const GaussianCloud cloud = random_cloud(5, 2000, 1.0f);
     Scene scene;
@@ -196,20 +198,29 @@ TEST(RenderApi, CancellationStopsPromptly) {
     RenderSettings s = small(128);
     s.samples = 100000;  // minutes of work if not cancelled
     std::atomic<bool> cancel{false};
+    std::atomic<float> latest_progress{0.0f};
+    std::atomic<bool> cancelled_at_set{false};
+    std::chrono::steady_clock::time_point cancelled_at;
     std::vector<float> progress;
-    const auto start = std::chrono::steady_clock::now();
     std::thread canceller([&] {
-        std::this_thread::sleep_for(std::chrono::milliseconds(150));
+        while (latest_progress.load() < 1.0f / float(s.samples))
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        cancelled_at = std::chrono::steady_clock::now();
+        cancelled_at_set = true;
         cancel = true;
     });
-    const Film f = render(scene, looking_at_origin(), s, [&](float p) { progress.push_back(p); }, &cancel);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const Film f = render(scene, looking_at_origin(), s, [&](float p) {
+        progress.push_back(p);
+        latest_progress.store(p);
+    }, &cancel);
+    const auto returned_at = std::chrono::steady_clock::now();
     canceller.join();
+    ASSERT_TRUE(cancelled_at_set.load());
     EXPECT_TRUE(f.stats.cancelled);
-    EXPECT_LT(seconds, 0.15 + 0.35);
+    EXPECT_LT(std::chrono::duration<double>(returned_at - cancelled_at).count(), 10.0);
     for (std::size_t i = 1; i < progress.size(); ++i) EXPECT_GE(progress[i], progress[i - 1]);
     // The film keeps the sample passes done before the cancel (their values: render_progressive_test), not an empty
-    // image: 0.15 s is many passes of 128 x 128 pixels, far from 100000.
+    // image.
     ASSERT_EQ(f.rgba().size(), 4u * 128 * 128);
     EXPECT_GE(f.stats.samples, 1);
     EXPECT_LT(f.stats.samples, 100000);

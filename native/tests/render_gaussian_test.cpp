@@ -24,8 +24,9 @@ Camera ortho_down_z(float height, float scale) {
     return cam;
 }
 
-RenderSettings exact_settings(int w, int h, GaussianMode mode) {
+RenderSettings exact_settings(int w, int h, GaussianMode mode, BlendSpace space = BlendSpace::Linear) {
     RenderSettings s;
+    s.blend_space = space;
     s.width = w;
     s.height = h;
     s.samples = 1;
@@ -39,7 +40,8 @@ RenderSettings exact_settings(int w, int h, GaussianMode mode) {
 }  // namespace
 
 // A Gaussian seen head-on (orthographic, along its smallest axis): alpha = a exp(-d^2 / 2) with
-// d^2 = (u / s1)^2 + (v / s2)^2, and rgb = alpha * linear colour. Tolerance 1e-5 (float arithmetic).
+// d^2 = (u / s1)^2 + (v / s2)^2, and rgb = alpha * linear colour (linear blend space) or linear(alpha * colour)
+// (display blend space, as a splat viewer shows it over black). Tolerance 1e-5 (float arithmetic).
 TEST(RenderGaussian, SingleGaussianHeadOnAlphaIsExact) {
     const float angle = 0.5235988f;  // rotated 30 degrees about Z: the axes are not the image axes
     const float q[4] = {std::cos(angle / 2), 0.0f, 0.0f, std::sin(angle / 2)};
@@ -52,8 +54,9 @@ TEST(RenderGaussian, SingleGaussianHeadOnAlphaIsExact) {
     scene.set_world(black_world());
     const Camera cam = ortho_down_z(5.0f, 4.0f);
     std::vector<Film> films;
+    for (BlendSpace space : {BlendSpace::Linear, BlendSpace::Display})
     for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric}) {
-        const Film film = render(scene, cam, exact_settings(64, 64, mode));
+        const Film film = render(scene, cam, exact_settings(64, 64, mode, space));
         int checked = 0;
         for (int j = 0; j < 64; ++j)
             for (int i = 0; i < 64; ++i) {
@@ -65,7 +68,11 @@ TEST(RenderGaussian, SingleGaussianHeadOnAlphaIsExact) {
                 if (expected < 1.0 / 255.0) expected = 0.0;
                 const std::size_t p = std::size_t(j) * 64 + i;
                 ASSERT_NEAR(film.alpha()[p], expected, 1e-5) << "pixel " << i << "," << j;
-                for (int c = 0; c < 3; ++c) ASSERT_NEAR(film.rgba()[4 * p + c], expected * srgb_to_linear_ref(rgb[c]), 1e-5);
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_NEAR(film.rgba()[4 * p + c],
+                                space == BlendSpace::Linear ? expected * srgb_to_linear_ref(rgb[c])
+                                                            : srgb_to_linear_ref(expected * rgb[c]),
+                                1e-5);
                 if (expected > 0.0) ++checked;
             }
         EXPECT_GT(checked, 100);
@@ -73,6 +80,11 @@ TEST(RenderGaussian, SingleGaussianHeadOnAlphaIsExact) {
     }
     // Head-on, the maximum response along the ray of the ellipsoid equals the disk's response: the two modes agree.
     for (std::size_t p = 0; p < films[0].alpha().size(); ++p) ASSERT_NEAR(films[0].alpha()[p], films[1].alpha()[p], 1e-5);
+    // Where the Gaussian is semi-transparent, linear compositing is brighter than the trained look: summed over the
+    // image, red (0.9) by 2.74x (from the formulas above).
+    double linear_sum = 0, display_sum = 0;
+    for (std::size_t p = 0; p < films[0].alpha().size(); ++p) linear_sum += films[0].rgba()[4 * p], display_sum += films[2].rgba()[4 * p];
+    EXPECT_GT(linear_sum, 2.5 * display_sum);
 }
 
 // Seen obliquely, a thick Gaussian differs between the two modes (the volumetric one sees its third axis).
@@ -120,8 +132,10 @@ struct RefQuad {
     std::array<double, 3> emission;
 };
 
+// `display`: the Gaussians' sRGB colours are composited as they are, D = sum T_i a_i c_i, and the quad behind
+// joins in display space: linear(D + T srgb(E)) (DESIGN §4); else linear colours are composited, D + T E.
 std::array<double, 4> reference_pixel(const GaussianCloud& cloud, bool flat, const std::vector<RefQuad>& quads,
-                                      const CameraRay& ray, double threshold) {
+                                      const CameraRay& ray, double threshold, bool display = false) {
     const double o[3] = {ray.origin[0], ray.origin[1], ray.origin[2]};
     const double d[3] = {ray.direction[0], ray.direction[1], ray.direction[2]};
     double t_mesh = ray.t_max;
@@ -170,21 +184,25 @@ std::array<double, 4> reference_pixel(const GaussianCloud& cloud, bool flat, con
     std::sort(hits.begin(), hits.end(), [](const RefHit& a, const RefHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); });
     std::array<double, 4> out{0, 0, 0, 0};
     double T = 1.0;
+    auto finish = [&](const std::array<double, 3>& behind) {
+        for (int c = 0; c < 3; ++c)
+            out[c] = display ? srgb_to_linear_ref(out[c] + T * linear_to_srgb_ref(behind[c])) : out[c] + T * behind[c];
+        return out;
+    };
     for (const RefHit& h : hits) {
         for (int c = 0; c < 3; ++c) {
             const double srgb = std::max(0.0, 0.5 + kShC0 * cloud.sh[h.index * 3 + c]);
-            out[c] += T * h.alpha * srgb_to_linear_ref(srgb);
+            out[c] += T * h.alpha * (display ? srgb : srgb_to_linear_ref(srgb));
         }
         T *= 1.0 - h.alpha;
-        if (T < threshold) return {out[0], out[1], out[2], 1.0};
+        if (T < threshold) {
+            T = 0.0;
+            out[3] = 1.0;
+            return finish({0, 0, 0});
+        }
     }
-    if (hit_quad) {
-        for (int c = 0; c < 3; ++c) out[c] += T * hit_quad->emission[c];
-        out[3] = 1.0;
-    } else {
-        out[3] = 1.0 - T;
-    }
-    return out;
+    out[3] = hit_quad ? 1.0 : 1.0 - T;
+    return finish(hit_quad ? hit_quad->emission : std::array<double, 3>{0, 0, 0});
 }
 
 // Random Gaussians around two emissive quads at different depths (black world): a plain one, x in [-1.5, 0.2],
@@ -215,7 +233,7 @@ Camera two_quad_scene_camera() {
 }  // namespace
 
 // Sorted gathering (k-nearest buffer, re-traced) equals sorting every hit, on random scenes with meshes between the
-// Gaussians, in both modes, one plain and one instanced mesh. Max pixel error 1e-5.
+// Gaussians, in both modes and both blend spaces, one plain and one instanced mesh. Max pixel error 1e-5.
 TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
     for (std::uint32_t seed : {1u, 2u}) {
         const GaussianCloud cloud = random_cloud(seed, 300, 1.0f);
@@ -224,9 +242,10 @@ TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
         const std::vector<RefQuad> quads = {{-1.5, 0.2, -1.5, 1.5, -0.3, {0.2, 0.7, 0.4}},
                                             {-0.2, 0.8, -0.5, 0.5, 0.35, {0.9, 0.1, 0.3}}};
         const Camera cam = two_quad_scene_camera();
+        for (BlendSpace space : {BlendSpace::Linear, BlendSpace::Display})
         for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
         for (int k : {3, 48, 128}) {
-            RenderSettings s = exact_settings(48, 40, mode);
+            RenderSettings s = exact_settings(48, 40, mode, space);
             s.gather_buffer_size = k;
             const Film film = render(scene, cam, s);
             double max_err = 0;
@@ -234,12 +253,13 @@ TEST(RenderGaussian, SortedGatherEqualsBruteForce) {
             for (int j = 0; j < s.height; ++j)
                 for (int i = 0; i < s.width; ++i) {
                     const CameraRay ray = generate_camera_ray(cam, s.width, s.height, i + 0.5f, j + 0.5f);
-                    const auto ref = reference_pixel(cloud, mode == GaussianMode::Flat, quads, ray, s.transmittance_threshold);
+                    const auto ref = reference_pixel(cloud, mode == GaussianMode::Flat, quads, ray, s.transmittance_threshold,
+                                                     space == BlendSpace::Display);
                     const std::size_t p = std::size_t(j) * s.width + i;
                     for (int c = 0; c < 4; ++c) max_err = std::max(max_err, std::abs(ref[c] - film.rgba()[4 * p + c]));
                 }
             composited = film.stats.gaussian_hits;
-            EXPECT_LE(max_err, 1e-5) << "seed " << seed << " mode " << int(mode) << " k " << k;
+            EXPECT_LE(max_err, 1e-5) << "seed " << seed << " mode " << int(mode) << " k " << k << " space " << int(space);
             // With k = 3 the scene must exercise re-tracing: many rays see more than 3 Gaussians.
             if (k == 3) {
                 EXPECT_GT(film.stats.traced_rays, std::uint64_t(s.width) * s.height * 2);
@@ -280,37 +300,53 @@ TEST(RenderGaussian, SpeculativeEndsChangeNothing) {
     }
 }
 
-// Stochastic compositing is unbiased: its error against the sorted image falls like samples^-1/2.
+// Stochastic compositing is unbiased: its error against the sorted image falls like samples^-1/2, in both blend
+// spaces, over a coloured world. In display space a stochastic sample is one display colour (or what lies behind) and
+// the film combines the means (SampleRecord): the film must converge to the sorted linear(D + T srgb(world)), not to
+// the linear composite that per-sample conversion would give.
 // The slope of log(RMSE) against log(spp) over 4, 16, 64, 256 spp must be in [-0.62, -0.38].
 TEST(RenderGaussian, StochasticConvergesToSorted) {
     const GaussianCloud cloud = random_cloud(7, 300, 1.0f);
     Scene scene;
     scene.add_gaussians(cloud);
-    scene.set_world(black_world());
+    World world;
+    world.color = {0.3f, 0.5f, 0.8f};
+    scene.set_world(world);
     Camera cam;
     cam.camera_to_world = Matrix4::look_at({0, 0, 4}, {0, 0, 0}, {0, 1, 0});
-    RenderSettings s = exact_settings(24, 24, GaussianMode::Flat);
-    s.transmittance_threshold = 0.0f;  // the expectation of stochastic compositing is the un-truncated sum
-    const Film sorted = render(scene, cam, s);
-    s.compositing = Compositing::Stochastic;
-    std::vector<double> xs, ys;
-    for (int spp : {4, 16, 64, 256}) {
-        s.samples = spp;
-        const Film st = render(scene, cam, s);
-        double se = 0;
-        for (std::size_t i = 0; i < sorted.rgba().size(); ++i) se += (st.rgba()[i] - sorted.rgba()[i]) * (st.rgba()[i] - sorted.rgba()[i]);
-        const double rmse = std::sqrt(se / sorted.rgba().size());
-        xs.push_back(std::log(double(spp)));
-        ys.push_back(std::log(rmse));
+    std::vector<Film> sorted_films;
+    for (BlendSpace space : {BlendSpace::Linear, BlendSpace::Display}) {
+        RenderSettings s = exact_settings(24, 24, GaussianMode::Flat, space);
+        s.transparent_background = false;
+        s.transmittance_threshold = 0.0f;  // the expectation of stochastic compositing is the un-truncated sum
+        const Film sorted = render(scene, cam, s);
+        sorted_films.push_back(sorted);
+        s.compositing = Compositing::Stochastic;
+        std::vector<double> xs, ys;
+        for (int spp : {4, 16, 64, 256}) {
+            s.samples = spp;
+            const Film st = render(scene, cam, s);
+            double se = 0;
+            for (std::size_t i = 0; i < sorted.rgba().size(); ++i)
+                se += (st.rgba()[i] - sorted.rgba()[i]) * (st.rgba()[i] - sorted.rgba()[i]);
+            const double rmse = std::sqrt(se / sorted.rgba().size());
+            xs.push_back(std::log(double(spp)));
+            ys.push_back(std::log(rmse));
+        }
+        const double mx = (xs[0] + xs[1] + xs[2] + xs[3]) / 4, my = (ys[0] + ys[1] + ys[2] + ys[3]) / 4;
+        double num = 0, den = 0;
+        for (int i = 0; i < 4; ++i) {
+            num += (xs[i] - mx) * (ys[i] - my);
+            den += (xs[i] - mx) * (xs[i] - mx);
+        }
+        const double slope = num / den;
+        EXPECT_GT(slope, -0.62) << "space " << int(space);
+        EXPECT_LT(slope, -0.38) << "space " << int(space);
+        EXPECT_LT(std::exp(ys[3]), 0.05) << "space " << int(space);  // 256 spp is already close
     }
-    const double mx = (xs[0] + xs[1] + xs[2] + xs[3]) / 4, my = (ys[0] + ys[1] + ys[2] + ys[3]) / 4;
-    double num = 0, den = 0;
-    for (int i = 0; i < 4; ++i) {
-        num += (xs[i] - mx) * (ys[i] - my);
-        den += (xs[i] - mx) * (xs[i] - mx);
-    }
-    const double slope = num / den;
-    EXPECT_GT(slope, -0.62);
-    EXPECT_LT(slope, -0.38);
-    EXPECT_LT(std::exp(ys[3]), 0.05);  // 256 spp is already close
+    // The two spaces' sorted images differ by far more than that (else the test could not tell them apart).
+    double se = 0;
+    for (std::size_t i = 0; i < sorted_films[0].rgba().size(); ++i)
+        se += std::pow(sorted_films[0].rgba()[i] - sorted_films[1].rgba()[i], 2);
+    EXPECT_GT(std::sqrt(se / sorted_films[0].rgba().size()), 0.05);
 }

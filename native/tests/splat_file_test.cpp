@@ -76,6 +76,12 @@ TEST(SplatFile, ImportMemoryEstimate) {
     EXPECT_GT(import_memory_bytes(1500000, 0, 8), 1500000000u);
     EXPECT_LT(import_memory_bytes(1500000, 0, 8), 4000000000u);
     EXPECT_GT(available_memory_bytes(), 0u);
+    // The compact form (one point per Gaussian): 13.6 M Gaussians of degree 0 in a few GB, several times less than
+    // polygons; SH adds 12 B per coefficient to each copy.
+    EXPECT_EQ(compact_import_memory_bytes(2000, 0), 2 * compact_import_memory_bytes(1000, 0));
+    EXPECT_LT(compact_import_memory_bytes(13600000, 0), 4000000000u);
+    EXPECT_LT(5 * compact_import_memory_bytes(1000, 0), import_memory_bytes(1000, 0, 8));
+    EXPECT_GT(compact_import_memory_bytes(1000, 3), compact_import_memory_bytes(1000, 0) + 1000 * 15 * 12 * 2);
 }
 
 TEST(SplatFileErrors, UnknownFormat) {

@@ -48,6 +48,8 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "region_y", std::int64_t(20));
     table.set(s, "region_width", std::int64_t(30));
     table.set(s, "region_height", std::int64_t(40));
+    table.set(s, "gaussian_shading", std::string("BAKED_SHADOWED"));
+    table.set(s, "blend_space", std::string("LINEAR"));
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -63,10 +65,12 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_EQ(s.adaptive_threshold, 0.005f);
     EXPECT_EQ(s.adaptive_min_samples, 24);
     EXPECT_EQ(s.region_x + s.region_y + s.region_width + s.region_height, 100);
+    EXPECT_EQ(s.gaussian_shading, GaussianShading::BakedShadowed);
+    EXPECT_EQ(s.blend_space, BlendSpace::Linear);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 25u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 27u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {
@@ -125,12 +129,12 @@ TEST(SplatFormatTable, ExtensionsLeadToTheirFormat) {
         // Every reader converts to the core's RDF (DESIGN §4): the up axis is the scene's, not the format's.
         EXPECT_EQ(std::string(f.up_axis), "-Y") << f.name;
     }
-    EXPECT_EQ(extensions, (std::set<std::string>{".ply", ".splat", ".spz"}));
+    EXPECT_EQ(extensions, (std::set<std::string>{".ply", ".splat", ".spz", ".glb", ".gltf", ".compressed.ply"}));
     EXPECT_EQ(splat_format_from_extension("A.SPZ"), SplatFormat::Spz);
     try {
         splat_format_from_extension("scene.obj");
         FAIL();
     } catch (const FileFormatError& e) {
-        EXPECT_NE(std::string(e.what()).find("'.obj' is not one of .ply, .splat, .spz"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("'.obj' is not one of .ply, .splat, .spz, .glb, .gltf, .compressed.ply"), std::string::npos) << e.what();
     }
 }

@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
     if (argc < 3) {
         std::fprintf(stderr,
                      "usage: raysplats info FILE\n"
-                     "       raysplats convert IN OUT    (formats from the extensions: .ply .splat .spz)\n"
+                     "       raysplats convert IN OUT    (formats from the extensions: .ply .splat .spz .compressed.ply)\n"
                      "       raysplats render SPLATS [MESH.obj ...] [options]   (raysplats render --help)\n");
         return 2;
     }

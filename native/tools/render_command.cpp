@@ -24,7 +24,9 @@
 //    "world": {"color": [r,g,b], "strength": 1},
 //    "render": {"width": 1280, "height": 720, "samples": 16, "max_bounces": 4, "seed": 0,
 //               "gaussian_mode": "FLAT|VOLUMETRIC", "compositing": "SORTED|STOCHASTIC",
+//               "blend_space": "DISPLAY|LINEAR",
 //               "transmittance_threshold": 0.001, "meshes_shadow_gaussians": false,
+//               "gaussian_shading": "BAKED|LIT|BAKED_SHADOWED",
 //               "transparent_background": false, ...every render setting}}
 #include <algorithm>
 #include <cctype>

@@ -66,6 +66,7 @@ def render_final(engine, depsgraph):
         render_settings.update(region_x=x, region_y=height - y - h, region_width=w, region_height=h)
     last_render.update(partial_results=[], samples=0, cancelled=False)
     started = time.perf_counter()
+    job = None
     try:
         job = core.RenderJob(render_scene, camera, render_settings)
         shown_samples, shown_at = 0, started
@@ -83,17 +84,21 @@ def render_final(engine, depsgraph):
                 shown_samples, shown_at = film["samples"], time.perf_counter()
                 last_render["partial_results"].append((shown_at - started, shown_samples))
         film = job.result()
+        # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
+        # Adaptive sampling: pixels took fewer samples than the maximum; the mean says how many.
+        mean_samples = film["camera_rays"] / (w * h)
+        print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
+              f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''} "
+              f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
+              f"{stats.triangles:,} triangles")
+        passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
-        engine.end_result(result, cancel=True)  # no half-written result left open in Blender
+        # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now
+        # rather than when the traceback lets the job go, and no half-written result is left open in Blender.
+        if job is not None:
+            job.cancel()
+        engine.end_result(result, cancel=True)
         raise
-    # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
-    # Adaptive sampling: pixels took fewer samples than the maximum; the mean says how many.
-    mean_samples = film["camera_rays"] / (w * h)
-    print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
-          f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''} "
-          f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
-          f"{stats.triangles:,} triangles")
-    passes.write_passes(result.layers[0], film, rows, cols)
     engine.end_result(result)
     last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples,
                        camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"])

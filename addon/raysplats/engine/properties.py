@@ -38,6 +38,15 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                ("STOCHASTIC", "Stochastic", "Each Gaussian accepted with probability alpha: no sorting, faster "
                                            "per sample, converges to the sorted image with more samples")),
         description="How Gaussians along a ray are combined")
+    blend_space: EnumProperty(
+        name="Blend Space", default="DISPLAY",
+        items=(("DISPLAY", "As Trained", "Gaussian colours composited as the scene was trained and as splat viewers "
+                                         "draw them (in sRGB display values), then made linear: with the Standard "
+                                         "view transform an unedited scene looks as in its viewer"),
+               ("LINEAR", "Linear", "Gaussian colours made linear, then composited: physically additive light, but "
+                                    "haze, floaters and soft edges come out brighter than trained (a grey halo)")),
+        description="Colour space in which Gaussians along a ray are composited; meshes, lights and the film are "
+                    "linear either way")
     transmittance_threshold: FloatProperty(
         name="Transmittance Threshold", default=1e-3, min=0.0, max=0.5, precision=4,
         description="Stop compositing Gaussians once less than this fraction of light gets through")
@@ -46,9 +55,18 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
         items=(("FLAT", "Flat", "Each Gaussian is a flat disk evaluated exactly where the ray meets its plane"),
                ("VOLUMETRIC", "Volumetric", "Each Gaussian is an ellipsoid (uses the stored thickness)")),
         description="Geometry the Gaussians are traced as")
+    gaussian_shading: EnumProperty(
+        name="Shading", default="BAKED",
+        items=(("BAKED", "Baked", "The captured light, as trained: scene lights do not change the splats"),
+               ("LIT", "Lit", "Each splat is a surface lit by the scene's lights and world, with shadows from meshes "
+                              "and splats (its colour, with the capture's light divided out, is its albedo)"),
+               ("BAKED_SHADOWED", "Baked + Shadows", "The captured light, darkened where meshes and splats hide the "
+                                                     "scene's lights")),
+        description="How splats' colours are produced (objects can override it in their Gaussian Splats panel)")
     meshes_shadow_gaussians: BoolProperty(
         name="Meshes Shadow Gaussians", default=False,
-        description="Darken Gaussians that meshes hide from the lights (Gaussians otherwise keep their baked light)")
+        description="Baked splats: darken Gaussians whose centres meshes hide from the lights (Baked + Shadows "
+                    "shadows each point seen, by meshes and splats)")
     seed: IntProperty(name="Seed", default=0, min=0, description="Seed of the sampling pattern")
     # Cycles' defaults (Blackman-Harris, 1.5 px), so that renders compare with Cycles'; Box at 1 px is the plain
     # in-pixel jitter of RaySplats before filters.

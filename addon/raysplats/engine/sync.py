@@ -4,7 +4,7 @@
 import bpy
 import numpy as np
 
-from .. import blender_compat, color_adjustment, gaussian_mesh, mesh_fast_read, modifier_checks, native
+from .. import blender_compat, color_adjustment, compact_splats, gaussian_mesh, mesh_fast_read, modifier_checks, native
 from ..material_reader import input_value
 from .materials import MaterialTable
 
@@ -37,6 +37,12 @@ def _world(scene):
             if node.bl_idname == "ShaderNodeBackground":
                 return input_value(node, (0.05, 0.05, 0.05), "Color"), input_value(node, 1.0, "Strength")
     return tuple(world.color), 1.0
+
+
+def _object_shading(obj):
+    """The object's own Gaussian shading for RenderScene.set_gaussian_shading (None: the scene's)."""
+    shading = obj.raysplats.gaussian_shading
+    return None if shading == "SCENE" else shading
 
 
 def triangle_mesh_arrays(mesh):
@@ -138,12 +144,26 @@ class SceneSync:
         self._warn = warn
         self._seen_warnings = set()
         self.clouds = {}  # original object (as_pointer) drawn once (not an instance) -> (native cloud index, splats)
+        self.shading = {}  # original object -> its Gaussian shading as last given to the native cloud
         self.interactive = interactive
         self.sources = {}  # interactive: original object -> _CloudSource of its cloud (absent: recover all next time)
         self.spare_sources = {}  # original object -> an older _CloudSource, whose arrays the next read reuses
         self.faces_recovered = 0  # by the last update() (diagnostics: an edit of a few splats recovers only them)
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
+        self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
         self._build(depsgraph)
+
+    @staticmethod
+    def _compact_cloud(obj):
+        """The Gaussians of an evaluated compact splat object in its own frame (its points' attributes; modifiers
+        move the centres), or None when it has no points. In Edit Mode the evaluated mesh wraps the edit BMesh
+        without filling its arrays: to_mesh() fills a copy."""
+        if obj.original.mode == "EDIT":
+            try:
+                return compact_splats.object_cloud(obj, obj.to_mesh())
+            finally:
+                obj.to_mesh_clear()
+        return compact_splats.object_cloud(obj)
 
     def _warn_once(self, message):
         if message not in self._seen_warnings:
@@ -241,9 +261,23 @@ class SceneSync:
                                                        cloud["opacities"], cloud["sh"],
                                                        np.array(matrix, dtype=np.float32))
                     stats.splats += len(cloud["opacities"])
+                    render_scene.set_gaussian_shading(index, _object_shading(obj))
                     if uid is not None:
+                        self.shading[uid] = _object_shading(obj)
                         self.clouds[uid] = (index, len(cloud["opacities"]))
                         self._keep_source(uid, source, cloud)
+            elif compact_splats.is_compact_object(obj):
+                for message in modifier_checks.compact_warnings(obj.original, for_render=not self.interactive):
+                    self._warn_once(message)
+                cloud = self._compact_cloud(obj)
+                if cloud is not None:
+                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"],
+                                                       np.array(matrix, dtype=np.float32))
+                    stats.splats += len(cloud["opacities"])
+                    render_scene.set_gaussian_shading(index, _object_shading(obj))
+                    if uid is not None:
+                        self.compact[uid] = (index, len(cloud["opacities"]))
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
                 arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
@@ -308,6 +342,9 @@ class SceneSync:
             return True
         if not isinstance(data, bpy.types.Object):
             return False  # the scene, meshes (their objects report the change), ...
+        uid = data.original.as_pointer()
+        if uid in self.clouds and _object_shading(data) != self.shading.get(uid):
+            return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
         return data.type != "CAMERA"  # the view's camera is not part of the scene
@@ -326,10 +363,29 @@ class SceneSync:
             uid = data.original.as_pointer()
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.clouds:
-                if not update.is_updated_geometry:
+                shading = _object_shading(data)
+                if shading != self.shading.get(uid):
+                    self.render_scene.set_gaussian_shading(self.clouds[uid][0], shading)
+                    self.shading[uid] = shading
+                if not (update.is_updated_geometry or update.is_updated_transform):
+                    pass  # only the shading changed
+                elif not update.is_updated_geometry:
                     self.render_scene.set_gaussians_matrix(self.clouds[uid][0], matrix)
                 elif not self._update_cloud(uid, data, matrix, depsgraph):
                     return "rebuild"
+                result = "updated"
+            elif uid in self.compact:
+                index, count = self.compact[uid]
+                if update.is_updated_geometry:
+                    cloud = self._compact_cloud(data)
+                    if cloud is None:
+                        return "rebuild"
+                    self.render_scene.update_gaussians(index, cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"], matrix)
+                    self.stats.splats += len(cloud["opacities"]) - count
+                    self.compact[uid] = (index, len(cloud["opacities"]))
+                else:
+                    self.render_scene.set_gaussians_matrix(index, matrix)
                 result = "updated"
             elif uid in self.meshes:
                 index, arrays = self.meshes[uid]
@@ -389,8 +445,9 @@ def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False
     values = {
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
+        "blend_space": settings.blend_space,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
-        "meshes_shadow_gaussians": settings.meshes_shadow_gaussians,
+        "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,
         "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,
         "transparent_background": bool(scene.render.film_transparent),
         "pixel_filter": settings.pixel_filter, "filter_width": settings.filter_width,

@@ -59,8 +59,12 @@ class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
         settings = context.scene.raysplats
         layout.prop(settings, "gaussian_mode")
         layout.prop(settings, "compositing")
+        layout.prop(settings, "blend_space")
         layout.prop(settings, "transmittance_threshold")
-        layout.prop(settings, "meshes_shadow_gaussians")
+        layout.prop(settings, "gaussian_shading")
+        row = layout.row()
+        row.active = settings.gaussian_shading == "BAKED"
+        row.prop(settings, "meshes_shadow_gaussians")
 
 
 class RAYSPLATS_RENDER_PT_film(RaySplatsPanel, bpy.types.Panel):

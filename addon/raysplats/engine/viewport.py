@@ -189,16 +189,19 @@ def _take_image(state):
 @_timed
 def view_draw(engine, context, depsgraph):
     import gpu
-    from gpu_extras.presets import draw_texture_2d
 
     state = engine.viewport_state
     scene = depsgraph.scene
     region = context.region
     if state.dirty:
         _stop_jobs(state)
+        # A scene that cannot be built (reported once by the engine's entry point) is not built again at every
+        # redraw: the next change of the scene (view_update) marks it dirty and tries again.
+        state.sync, state.dirty = None, False
         state.sync = sync.SceneSync(depsgraph, interactive=True)  # the job builds its BVH on its own thread
-        state.dirty = False
         last_draw["rebuilds"] = last_draw.get("rebuilds", 0) + 1
+    if state.sync is None:
+        return  # the last build failed; nothing to draw until the scene changes
     width, height = region.width, region.height
     camera = view_camera(context, width, height)
     settings = sync.render_settings(scene, width, height, scene.raysplats.viewport_samples)
@@ -229,11 +232,24 @@ def view_draw(engine, context, depsgraph):
         # The preview has ended: the full image, in sample passes (seeds after the preview's).
         state.job_is_preview = False
         _start_job(engine, state, scene, context, width, height, scene.raysplats.viewport_samples, seed_offset=1)
-    if state.texture is None:
-        return
+    if state.texture is not None:
+        draw_image(engine, scene, state.texture, region)
+
+
+def draw_image(engine, scene, texture, region):
+    """Draws the film texture over the region through Blender's display transform. Blender's GPU state (blending,
+    the display-space shader) is restored even when drawing fails: left set, it would spoil every later drawing of
+    the window."""
+    import gpu
+    from gpu_extras.presets import draw_texture_2d
+
     gpu.state.blend_set("ALPHA_PREMULT")
-    engine.bind_display_space_shader(scene)
-    # Film rows run top to bottom, texture rows bottom to top: drawn with a negative height, flipped for free.
-    draw_texture_2d(state.texture, (0, region.height), region.width, -region.height)
-    engine.unbind_display_space_shader()
-    gpu.state.blend_set("NONE")
+    try:
+        engine.bind_display_space_shader(scene)
+        try:
+            # Film rows run top to bottom, texture rows bottom to top: drawn with a negative height, flipped for free.
+            draw_texture_2d(texture, (0, region.height), region.width, -region.height)
+        finally:
+            engine.unbind_display_space_shader()
+    finally:
+        gpu.state.blend_set("NONE")

@@ -13,6 +13,12 @@ namespace raysplats {
 // import grew Blender 3.4's peak resident memory by 1.95 GB (background mode, so without an undo copy).
 std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertices_per_polygon);
 
+// Peak bytes of importing `count` Gaussians as a compact splat object (one point per Gaussian with its attributes,
+// Blender 5.3's splat layout): the cloud read from the file, one temporary attribute array, and the host's point
+// data (position with its per-point flags, scale, rotation, DC colour + opacity, the other SH coefficients) counted
+// twice (the data plus the copy an undo step keeps).
+std::uint64_t compact_import_memory_bytes(std::uint64_t count, int sh_degree);
+
 // Bytes that can be allocated without swapping: the kernel's MemAvailable (/proc/meminfo), lowered to the room
 // left under this process's cgroup memory limit (cgroup v2 memory.max - memory.current) when there is one.
 // 0 when neither can be read (then callers do not refuse anything).

@@ -20,6 +20,28 @@ inline float linear_to_srgb(float c) {
     return 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
 }
 
+// srgb_to_linear for the renderer's per-pixel conversions (BlendSpace::Display): on [0, 1) by linear interpolation in
+// a table of 4097 values of the exact curve (the interpolation error is at most f'' h^2 / 8 = 3.0 / 4096^2 / 8 =
+// 2.2e-8, below the float resolution of the result near 1), elsewhere srgb_to_linear. About 10x cheaper than the
+// powf it replaces, which cost display-space renders 0.2 us of CPU per pixel sample (bench_render).
+inline float srgb_to_linear_tabulated(float c) {
+    struct Table {
+        float v[4097];
+        Table() {
+            for (int i = 0; i <= 4096; ++i) {
+                const double x = i / 4096.0;
+                v[i] = float(x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4));
+            }
+        }
+    };
+    static const Table table;
+    if (!(c >= 0.0f && c < 1.0f)) return srgb_to_linear(c);
+    const float x = c * 4096.0f;
+    const int i = int(x);
+    const float f = x - float(i);
+    return table.v[i] + f * (table.v[i + 1] - table.v[i]);
+}
+
 // c limited to [0, 1]; NaN stays NaN.
 inline float clamp_unit(float c) { return c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c); }
 

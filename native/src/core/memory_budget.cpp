@@ -23,6 +23,15 @@ std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertic
     return count * (cloud + polygons + 2 * mesh);
 }
 
+std::uint64_t compact_import_memory_bytes(std::uint64_t count, int sh_degree) {
+    const std::uint64_t coeffs = std::uint64_t(sh_coeff_count(std::min(std::max(sh_degree, 0), 3)));
+    const std::uint64_t cloud = 4 * (11 + 3 * coeffs);
+    // Blender's points: position 12 B plus about 4 B of flags, scale 12, rotation 16, radiance:base 16, 12 B per
+    // further SH coefficient.
+    const std::uint64_t points = 16 + 12 + 16 + 16 + 12 * (coeffs - 1);
+    return count * (cloud + 16 + 2 * points);
+}
+
 namespace {
 // The first number in a file, or `fallback` (for "max" and for files that cannot be read).
 std::uint64_t read_number(const std::string& path, std::uint64_t fallback) {

@@ -242,11 +242,15 @@ void add_draco_mesh(tinygltf::Model& model, BufferLayout& layout, const ExportMe
     }
 }
 
-// Gaussians as a point primitive with the KHR_gaussian_splatting extension (Khronos; colour space left at
-// its default, BT.709 display values as 3DGS scenes are trained):
-// POSITION, COLOR_0 (SH DC colour, linear, alpha = opacity), and the extension's attributes ROTATION
-// (unit quaternion x, y, z, w as glTF orders them), SCALE (linear) and OPACITY, plus SH_DEGREE_l_COEF_k for
-// the SH coefficients (RGB per coefficient).
+// Gaussians as a point primitive with the KHR_gaussian_splatting extension, as its ratified text (KhronosGroup/glTF,
+// extensions/2.0/Khronos/KHR_gaussian_splatting, "Complete, Ratified by the Khronos Group") defines it:
+//   mode POINTS; POSITION (float VEC3, in glTF's +Y-up frame: the caller converts); KHR_gaussian_splatting:ROTATION
+//   (unit quaternion "in the order (x, y, z, w), where w is the scalar component"), :SCALE (linear standard
+//   deviations, the activated values), :OPACITY ("normalized value between 0.0 and 1.0 ... Out-of-range values are
+//   invalid": the sigmoid already applied, clamped here), :SH_DEGREE_l_COEF_n (n = 0 .. 2l, RGB each, the 3DGS basis;
+//   degree 0 always, each degree complete); COLOR_0 as the optional point-cloud fallback (diffuse colour, linear as
+//   glTF's COLOR_0 is, alpha = opacity); the extension object's required `kernel` ("ellipse") and `colorSpace`
+//   ("srgb_rec709_display": 3DGS scenes are trained on display-referred sRGB images).
 void add_gaussians(tinygltf::Model& model, BufferLayout& layout, const GaussianCloud& cloud, tinygltf::Mesh& out) {
     const std::size_t n = cloud.size();
     if (!n) return;
@@ -287,10 +291,10 @@ void add_gaussians(tinygltf::Model& model, BufferLayout& layout, const GaussianC
         o[0] = q[1], o[1] = q[2], o[2] = q[3], o[3] = q[0];
     });
     float_attribute(std::string(kSplatExtension) + ":SCALE", TINYGLTF_TYPE_VEC3, 3, [&cloud](std::size_t i, float* o) {
-        std::memcpy(o, &cloud.scales[3 * i], 12);
+        for (int c = 0; c < 3; ++c) o[c] = std::max(0.0f, cloud.scales[3 * i + std::size_t(c)]);  // "MUST NOT be negative"
     });
     float_attribute(std::string(kSplatExtension) + ":OPACITY", TINYGLTF_TYPE_SCALAR, 1, [&cloud](std::size_t i, float* o) {
-        o[0] = cloud.opacities[i];
+        o[0] = std::min(1.0f, std::max(0.0f, cloud.opacities[i]));
     });
     for (int k = 0; k < coeffs; ++k) {
         const int l = k == 0 ? 0 : k < 4 ? 1 : k < 9 ? 2 : 3;
@@ -300,7 +304,8 @@ void add_gaussians(tinygltf::Model& model, BufferLayout& layout, const GaussianC
                             std::memcpy(o, &cloud.sh[(std::size_t(coeffs) * i + std::size_t(k)) * 3], 12);
                         });
     }
-    prim.extensions[kSplatExtension] = json_object({{"kernel", tinygltf::Value(std::string("ellipse"))}});
+    prim.extensions[kSplatExtension] = json_object({{"kernel", tinygltf::Value(std::string("ellipse"))},
+                                                    {"colorSpace", tinygltf::Value(std::string("srgb_rec709_display"))}});
     out.primitives.push_back(prim);
 }
 

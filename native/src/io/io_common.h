@@ -146,6 +146,16 @@ private:
 // Header-only probes of each format (splat_io.h: probe_splat_file), beside their readers.
 SplatFileSummary probe_ply(const FileBytes& f);
 SplatFileSummary probe_spz(const FileBytes& f);
+SplatFileSummary probe_gltf(const FileBytes& f);  // gltf_splat_format.cpp: parses the JSON and checks the accessors
+
+// SuperSplat's compressed PLY (compressed_ply_format.cpp) is a PLY file: the PLY reader and probe hand it over
+// when is_compressed_ply says its header has the 'chunk' element and packed vertex properties.
+struct PlyHeader;
+bool is_compressed_ply(const PlyHeader& header);
+GaussianCloud read_compressed_ply_data(const std::uint8_t* data, std::size_t size, const std::string& path,
+                                       const PlyHeader& header, const ReadOptions& options, LoadReport* report);
+SplatFileSummary probe_compressed_ply(const std::uint8_t* data, std::size_t size, const std::string& path,
+                                      const PlyHeader& header);
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);

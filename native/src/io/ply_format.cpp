@@ -1,4 +1,5 @@
-// INRIA 3DGS .ply reader and writer (DESIGN §4).
+// INRIA 3DGS .ply reader and writer (DESIGN §4). A SuperSplat compressed PLY is recognised by its header and read by
+// compressed_ply_format.cpp.
 //
 // Reader: ascii, binary_little_endian and binary_big_endian; properties looked up by name in any order; any
 // PLY scalar type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32, uint/uint32,
@@ -17,192 +18,18 @@
 #include <vector>
 
 #include "io/io_common.h"
+#include "io/ply_header.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
 namespace {
 
-enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
-
-bool parse_ply_type(const std::string& s, PlyType& t) {
-    if (s == "char" || s == "int8") t = PlyType::Int8;
-    else if (s == "uchar" || s == "uint8") t = PlyType::UInt8;
-    else if (s == "short" || s == "int16") t = PlyType::Int16;
-    else if (s == "ushort" || s == "uint16") t = PlyType::UInt16;
-    else if (s == "int" || s == "int32") t = PlyType::Int32;
-    else if (s == "uint" || s == "uint32") t = PlyType::UInt32;
-    else if (s == "float" || s == "float32") t = PlyType::Float32;
-    else if (s == "double" || s == "float64") t = PlyType::Float64;
-    else return false;
-    return true;
-}
-
-std::size_t ply_type_size(PlyType t) {
-    switch (t) {
-        case PlyType::Int8:
-        case PlyType::UInt8: return 1;
-        case PlyType::Int16:
-        case PlyType::UInt16: return 2;
-        case PlyType::Int32:
-        case PlyType::UInt32:
-        case PlyType::Float32: return 4;
-        case PlyType::Float64: return 8;
-    }
-    return 0;
-}
-
-struct PlyProperty {
-    std::string name;
-    PlyType type = PlyType::Float32;
-    bool is_list = false;
-    PlyType count_type = PlyType::UInt8;
-    std::size_t offset = 0;  // within a binary record (fixed-size elements only)
-    std::size_t header_offset = 0;  // byte offset of its 'property' line, for errors
-};
-
-struct PlyElement {
-    std::string name;
-    std::uint64_t count = 0;
-    std::vector<PlyProperty> props;
-    std::size_t record_size = 0;  // binary, when no list properties
-    bool has_list = false;
-    std::size_t header_offset = 0;  // byte offset of its 'element' line, for errors
-};
-
-enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
-
-struct PlyHeader {
-    PlyFormat format = PlyFormat::BinaryLE;
-    std::vector<PlyElement> elements;
-    std::size_t data_offset = 0;  // first byte after end_header's newline
-};
-
-constexpr std::size_t kMaxHeaderBytes = 1 << 20;
-
-std::vector<std::string> split_ws(const std::string& line) {
-    std::vector<std::string> out;
-    std::size_t i = 0;
-    while (i < line.size()) {
-        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-        std::size_t j = i;
-        while (j < line.size() && !std::isspace(static_cast<unsigned char>(line[j]))) ++j;
-        if (j > i) out.push_back(line.substr(i, j - i));
-        i = j;
-    }
-    return out;
-}
-
-PlyHeader parse_header(const io::FileBytes& f) {
-    const std::string& path = f.path();
-    const char* d = reinterpret_cast<const char*>(f.data());
-    const std::size_t size = f.size();
-    if (size == 0) throw FileFormatError(path, "file is empty");
-    PlyHeader h;
-    std::size_t pos = 0;
-    bool have_format = false, ended = false;
-    int line_no = 0;
-    while (!ended) {
-        if (pos >= size) throw FileFormatError(path, "PLY header has no 'end_header' line (file ends in the header)", pos);
-        if (pos >= kMaxHeaderBytes)
-            throw FileFormatError(path, "PLY header has no 'end_header' line in its first " + std::to_string(kMaxHeaderBytes) +
-                                            " bytes", pos);
-        const std::size_t line_start = pos;
-        const void* nl = std::memchr(d + pos, '\n', std::min(size, kMaxHeaderBytes + 1) - pos);
-        const std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - d) : size;
-        std::string line(d + pos, end - pos);
-        if (!line.empty() && line.back() == '\r') line.pop_back();
-        pos = nl ? end + 1 : end;
-        ++line_no;
-        if (line_no == 1) {
-            if (line != "ply") throw FileFormatError(path, "not a PLY file: first line is not 'ply'", 0);
-            continue;
-        }
-        const auto tok = split_ws(line);
-        if (tok.empty()) continue;
-        const std::string& kw = tok[0];
-        if (kw == "comment" || kw == "obj_info") continue;
-        if (kw == "format") {
-            if (tok.size() < 2) throw FileFormatError(path, "PLY 'format' line has no format name", line_start);
-            if (tok[1] == "ascii") h.format = PlyFormat::Ascii;
-            else if (tok[1] == "binary_little_endian") h.format = PlyFormat::BinaryLE;
-            else if (tok[1] == "binary_big_endian") h.format = PlyFormat::BinaryBE;
-            else throw FileFormatError(path, "unknown PLY format '" + tok[1] + "'", line_start);
-            have_format = true;
-        } else if (kw == "element") {
-            if (!have_format) throw FileFormatError(path, "PLY header has no 'format' line before its first element", line_start);
-            if (tok.size() != 3) throw FileFormatError(path, "malformed PLY element line '" + line + "'", line_start);
-            PlyElement e;
-            e.name = tok[1];
-            e.header_offset = line_start;
-            const auto r = std::from_chars(tok[2].data(), tok[2].data() + tok[2].size(), e.count);
-            if (r.ec != std::errc() || r.ptr != tok[2].data() + tok[2].size())
-                throw FileFormatError(path, "bad element count '" + tok[2] + "' for element '" + e.name + "'", line_start);
-            h.elements.push_back(std::move(e));
-        } else if (kw == "property") {
-            if (h.elements.empty()) throw FileFormatError(path, "PLY property before any element", line_start);
-            PlyElement& e = h.elements.back();
-            PlyProperty p;
-            p.header_offset = line_start;
-            if (tok.size() >= 2 && tok[1] == "list") {
-                if (tok.size() != 5) throw FileFormatError(path, "malformed PLY list property line '" + line + "'", line_start);
-                if (!parse_ply_type(tok[2], p.count_type) || !parse_ply_type(tok[3], p.type))
-                    throw FileFormatError(path, "unknown PLY type in '" + line + "'", line_start);
-                // A count is a number of items: a float count has no meaning, and converting a huge or NaN one
-                // to an integer is undefined behaviour.
-                if (p.count_type == PlyType::Float32 || p.count_type == PlyType::Float64)
-                    throw FileFormatError(path, "list property '" + tok[4] + "' of element '" + e.name + "' has a " +
-                                                    tok[2] + " count; a list count must be an integer type",
-                                          line_start);
-                p.is_list = true;
-                p.name = tok[4];
-                e.has_list = true;
-            } else {
-                if (tok.size() != 3) throw FileFormatError(path, "malformed PLY property line '" + line + "'", line_start);
-                if (!parse_ply_type(tok[1], p.type))
-                    throw FileFormatError(path, "unknown PLY type '" + tok[1] + "' of property '" + tok[2] + "'", line_start);
-                p.name = tok[2];
-                p.offset = e.record_size;
-                e.record_size += ply_type_size(p.type);
-            }
-            e.props.push_back(std::move(p));
-        } else if (kw == "end_header") {
-            ended = true;
-        } else {
-            throw FileFormatError(path, "unexpected PLY header line '" + line + "'", line_start);
-        }
-    }
-    if (!have_format) throw FileFormatError(path, "PLY header has no 'format' line", 0);
-    // Records without properties occupy no bytes, so nothing in the file bounds their count: skipping 2^64 - 1
-    // of them would loop for minutes. Such an element holds no data; refuse it rather than guess.
-    for (const PlyElement& e : h.elements)
-        if (e.props.empty() && e.count > 0)
-            throw FileFormatError(path, "PLY element '" + e.name + "' declares " + std::to_string(e.count) +
-                                            " records but no properties", e.header_offset);
-    h.data_offset = pos;
-    return h;
-}
-
-template <bool BigEndian>
-inline double load_value(const std::uint8_t* p, PlyType t) {
-    std::uint8_t b[8];
-    const std::size_t n = ply_type_size(t);
-    if (BigEndian) {
-        for (std::size_t i = 0; i < n; ++i) b[i] = p[n - 1 - i];
-    } else {
-        std::memcpy(b, p, n);
-    }
-    switch (t) {
-        case PlyType::Int8: return double(static_cast<std::int8_t>(b[0]));
-        case PlyType::UInt8: return double(b[0]);
-        case PlyType::Int16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
-        case PlyType::UInt16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
-        case PlyType::Int32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
-        case PlyType::UInt32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-        case PlyType::Float32: { float v; std::memcpy(&v, b, 4); return v; }
-        case PlyType::Float64: { double v; std::memcpy(&v, b, 8); return v; }
-    }
-    return 0.0;
-}
+using io::PlyElement;
+using io::PlyFormat;
+using io::PlyHeader;
+using io::PlyProperty;
+using io::PlyType;
+using io::ply_type_size;
 
 // Canonical field order inside the reader: x y z, f_dc_0..2, opacity, scale_0..2, rot_0..3, f_rest_0..M-1.
 constexpr int kNumRequired = 14;
@@ -366,7 +193,7 @@ void decode_binary(GaussianCloud& c, const std::uint8_t* base, std::size_t n, co
                     f[k] = x;
                 }
             } else {
-                for (std::size_t k = 0; k < nf; ++k) f[k] = load_value<BigEndian>(rec + offs[k], types[k]);
+                for (std::size_t k = 0; k < nf; ++k) f[k] = io::load_ply_value<BigEndian>(rec + offs[k], types[k]);
             }
             store_splat(c, i, f, K);
         }
@@ -424,7 +251,8 @@ void skip_ascii_element(AsciiCursor& cur, const PlyElement& e) {
 
 namespace io {
 SplatFileSummary probe_ply(const FileBytes& f) {
-    const PlyHeader h = parse_header(f);
+    const PlyHeader h = io::parse_ply_header(f);
+    if (io::is_compressed_ply(h)) return io::probe_compressed_ply(f.data(), f.size(), f.path(), h);
     for (const PlyElement& e : h.elements)
         if (e.name == "vertex") {
             const FieldMap m = map_fields(f.path(), h, e);
@@ -436,7 +264,8 @@ SplatFileSummary probe_ply(const FileBytes& f) {
 
 GaussianCloud read_ply(const std::string& path, const ReadOptions& options, LoadReport* report) {
     io::FileBytes f(path);
-    const PlyHeader h = parse_header(f);
+    const PlyHeader h = io::parse_ply_header(f);
+    if (io::is_compressed_ply(h)) return io::read_compressed_ply_data(f.data(), f.size(), path, h, options, report);
     std::size_t vi = h.elements.size();
     for (std::size_t i = 0; i < h.elements.size(); ++i)
         if (h.elements[i].name == "vertex") {
@@ -496,8 +325,8 @@ GaussianCloud read_ply(const std::string& path, const ReadOptions& options, Load
                     } else {
                         const std::size_t cs = ply_type_size(p.count_type);
                         if (off + cs > size) throw FileFormatError(path, "file is truncated in element '" + e.name + "'", off);
-                        const double cnt = be ? load_value<true>(f.data() + off, p.count_type)
-                                              : load_value<false>(f.data() + off, p.count_type);
+                        const double cnt = be ? io::load_ply_value<true>(f.data() + off, p.count_type)
+                                              : io::load_ply_value<false>(f.data() + off, p.count_type);
                         if (!(cnt >= 0)) throw FileFormatError(path, "negative list count in element '" + e.name + "'", off);
                         off += cs + std::uint64_t(cnt) * ply_type_size(p.type);
                     }

@@ -271,6 +271,7 @@ GaussianCloud read_splat_file(const std::string& path, const ReadOptions& option
     if (got >= 4 && std::memcmp(head, "NGSP", 4) == 0) return read_spz(path, options, report);
     if (got >= 2 && head[0] == 0x1f && head[1] == 0x8b) return read_spz(path, options, report);
     const std::string e = io::lower_extension(path);
+    if ((got >= 4 && std::memcmp(head, "glTF", 4) == 0) || e == ".gltf") return read_gltf_splats(path, options, report);
     if (e == ".splat") return read_dot_splat(path, options, report);
     if (e == ".ply" || e == ".spz")
         throw FileFormatError(path, "not a " + e.substr(1) + " file: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
@@ -287,6 +288,7 @@ SplatFileSummary probe_splat_file(const std::string& path) {
     if (f.size() >= 3 && std::memcmp(d, "ply", 3) == 0) return io::probe_ply(f);
     if ((f.size() >= 4 && std::memcmp(d, "NGSP", 4) == 0) || (f.size() >= 2 && d[0] == 0x1f && d[1] == 0x8b))
         return io::probe_spz(f);
+    if ((f.size() >= 4 && std::memcmp(d, "glTF", 4) == 0) || io::lower_extension(path) == ".gltf") return io::probe_gltf(f);
     if (io::lower_extension(path) == ".splat") return {SplatFormat::Splat, f.size() / 32, 0};
     throw FileFormatError(path, "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
 }
@@ -296,6 +298,9 @@ void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
         case SplatFormat::Ply: return write_ply(path, cloud);
         case SplatFormat::Splat: return write_dot_splat(path, cloud);
         case SplatFormat::Spz: return write_spz(path, cloud);
+        case SplatFormat::Gltf:
+            throw FileFormatError(path, "glTF splats are written by the mesh export (KHR_gaussian_splatting), not here");
+        case SplatFormat::CompressedPly: return write_compressed_ply(path, cloud);
     }
 }
 

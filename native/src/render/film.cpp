@@ -36,6 +36,30 @@ void write_atomically(const std::string& path, Write write) {
 
 namespace {
 
+// FilmTile::display_sums_ per pixel: D (3), T, T L_behind (3), samples.
+constexpr std::size_t kDisplaySums = 8;
+
+void add_display_parts(float* sums, const SampleRecord& record) {
+    for (int k = 0; k < 3; ++k) {
+        sums[k] += record.display_radiance[k];
+        sums[4 + k] += record.behind_radiance[k];
+    }
+    sums[3] += record.display_transmittance;
+    sums[7] += 1.0f;
+}
+
+// What a pixel's display parts add to its linear RGB (SampleRecord): linear(mean D + mean T display(mean(T L_behind)
+// / mean T)) in channel k. Where no sample met a Gaussian (D = 0, T = 1) that is mean L_behind, taken as it is.
+// sums[7] > 0.
+inline float display_part(const float* sums, int k) {
+    const float n = sums[7], t = sums[3] / n;
+    const bool gaussians = sums[3] != n || sums[0] != 0.0f || sums[1] != 0.0f || sums[2] != 0.0f;
+    const float behind = sums[4 + k] / n;
+    return !gaussians  ? behind
+           : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
+                      : srgb_to_linear_tabulated(sums[k] / n);
+}
+
 void radiance_and_coverage(const SampleRecord& s, float* out) {
     out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
 }
@@ -125,10 +149,18 @@ float FilmTile::noise_estimate(int x, int y) const {
     if (odd_radiance_.empty() || odd == 0) return std::numeric_limits<float>::infinity();
     const float* sum = values_[std::size_t(FilmChannel::Combined)].data() + 4 * pixel;
     const float* odd_sum = odd_radiance_.data() + 3 * pixel;
+    // Display blend space: both pixel values as write_to() combines them, from all samples' display parts and from
+    // the odd ones' (a half whose samples all missed the camera has none: its value is its radiance alone).
+    const float* display = display_sums_.empty() ? nullptr : display_sums_.data() + kDisplaySums * pixel;
+    const float* odd_display = odd_display_sums_.empty() ? nullptr : odd_display_sums_.data() + kDisplaySums * pixel;
+    if (display && display[7] == 0.0f) display = nullptr;
+    if (odd_display && odd_display[7] == 0.0f) odd_display = nullptr;
     float difference = 0.0f, intensity = 0.0f;
     for (int c = 0; c < 3; ++c) {
-        const float mean = sum[c] / float(n);
-        difference += std::fabs(mean - odd_sum[c] / float(odd));
+        float mean = sum[c] / float(n), odd_mean = odd_sum[c] / float(odd);
+        if (display) mean += display_part(display, c);
+        if (odd_display) odd_mean += display_part(odd_display, c);
+        difference += std::fabs(mean - odd_mean);
         intensity += mean;
     }
     const float normalize = intensity < 1.0f ? std::sqrt(std::max(intensity, 0.0f)) : intensity;
@@ -151,6 +183,16 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         info.from_sample(record, values);
         for (int k = 0; k < c; ++k) out[k] += values[k];
     }
+    if (record.display_blend) {
+        const std::size_t pixels = std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_);
+        if (display_sums_.empty()) {
+            display_sums_.assign(kDisplaySums * pixels, 0.0f);
+            if (!odd_radiance_.empty()) odd_display_sums_.assign(kDisplaySums * pixels, 0.0f);
+        }
+        add_display_parts(display_sums_.data() + kDisplaySums * pixel, record);
+        if (!odd_display_sums_.empty() && (sample & 1))
+            add_display_parts(odd_display_sums_.data() + kDisplaySums * pixel, record);
+    }
 }
 
 void FilmTile::write_to(Film& film, bool transparent_background) const {
@@ -167,6 +209,17 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
                 // A pixel without samples: its sums are 0, the empty value of a Mean channel.
                 const float inv = counts_[pixel] > 0 ? 1.0f / float(counts_[pixel]) : 0.0f;
                 for (std::size_t k = 0; k < c; ++k) out[k] = mean ? v[k] * inv : v[k];
+            }
+    }
+    if (!display_sums_.empty()) {
+        // SampleRecord: rgb += linear(mean D + mean T display(mean(T L_behind) / mean T)) (display_part).
+        FloatBuffer& rgba = film.rgba();
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const float* sums = display_sums_.data() + kDisplaySums * index(x, y);
+                if (sums[7] == 0.0f) continue;
+                float* out = rgba.data() + 4 * (std::size_t(y) * film.width + x);
+                for (int k = 0; k < 3; ++k) out[k] += display_part(sums, k);
             }
     }
     if (transparent_background) return;

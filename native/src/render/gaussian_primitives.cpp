@@ -11,6 +11,7 @@
 #include <tbb/parallel_sort.h>
 
 #include "core/linear_algebra.h"
+#include "core/morton_order.h"
 #include "raysplats/spherical_harmonics.h"
 #include "render_math.h"
 
@@ -49,37 +50,6 @@ bool gaussian_box(const GaussianPrimitive& g, bool flat, glm::vec3& lower, glm::
 float half_area(const glm::vec3& lower, const glm::vec3& upper) {
     const glm::vec3 e = upper - lower;
     return e.x * e.y + e.y * e.z + e.z * e.x;
-}
-
-// Indices of the cloud's Gaussians in Morton order (10 bits per axis) of their centres.
-std::vector<std::uint32_t> morton_order(const GaussianCloud& c) {
-    const std::size_t n = c.size();
-    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-    for (std::size_t i = 0; i < n; ++i) {
-        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
-    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-30f));
-    auto spread = [](std::uint64_t v) {  // 10 bits -> every third bit
-        v &= 0x3ff;
-        v = (v | (v << 16)) & 0x30000ff;
-        v = (v | (v << 8)) & 0x300f00f;
-        v = (v | (v << 4)) & 0x30c30c3;
-        v = (v | (v << 2)) & 0x9249249;
-        return v;
-    };
-    std::vector<std::uint64_t> keyed(n);
-    tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
-        const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
-        const glm::vec3 q = glm::clamp((p - lo) / extent, 0.0f, 1.0f) * 1023.0f;
-        const std::uint64_t code = spread(std::uint64_t(q.x)) | (spread(std::uint64_t(q.y)) << 1) | (spread(std::uint64_t(q.z)) << 2);
-        keyed[i] = (code << 32) | std::uint64_t(i);
-    });
-    tbb::parallel_sort(keyed.begin(), keyed.end());
-    std::vector<std::uint32_t> order(n);
-    for (std::size_t j = 0; j < n; ++j) order[j] = std::uint32_t(keyed[j] & 0xffffffffu);
-    return order;
 }
 
 }  // namespace
@@ -133,8 +103,13 @@ std::vector<char> GaussianSet::prepare(GaussianMode mode, bool keep_order) {
     for (auto& f : chunk_changed) f = !keep_order;
     prims.resize(n);
     const bool deg0 = c.sh_degree == 0;
-    if (deg0) linear_rgb.resize(3 * n);
-    else linear_rgb.clear();
+    if (deg0) {
+        linear_rgb.resize(3 * n);
+        display_rgb.resize(3 * n);
+    } else {
+        linear_rgb.clear();
+        display_rgb.clear();
+    }
     if (!keep_order) {
         cloud_index = morton_order(c);
         prim_index.resize(n);
@@ -171,11 +146,14 @@ std::vector<char> GaussianSet::prepare_rows(const std::vector<std::uint32_t>& ro
 
 void GaussianSet::store_linear_rgb(std::uint32_t j) {
     const float* dc = &cloud->sh[3 * std::size_t(cloud_index[j])];
-    for (int ch = 0; ch < 3; ++ch) linear_rgb[3 * j + ch] = srgb_to_linear(std::max(0.0f, sh_dc_to_display_single(dc[ch])));
+    for (int ch = 0; ch < 3; ++ch) {
+        display_rgb[3 * j + ch] = std::max(0.0f, sh_dc_to_display_single(dc[ch]));
+        linear_rgb[3 * j + ch] = srgb_to_linear(display_rgb[3 * j + ch]);
+    }
 }
 
-glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
-    if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
+glm::vec3 GaussianSet::display_color(std::uint32_t i, const glm::vec3& origin) const {
+    if (!display_rgb.empty()) return {display_rgb[3 * i], display_rgb[3 * i + 1], display_rgb[3 * i + 2]};
     // Reference 3DGS: the SH are evaluated in the direction from the camera (ray origin) to the centre, here in
     // the cloud's frame: A^-1 (A c + b - o) = c - A^-1 (o - b).
     glm::vec3 dir = prims[i].center - world_to_object_dir * (origin - translation);
@@ -183,6 +161,12 @@ glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
     dir = len > 0.0f ? dir / len : glm::vec3(0, 0, 1);
     const int k = cloud->coeffs_per_channel();
     const auto rgb = evaluate_sh(cloud->sh_degree, &cloud->sh[std::size_t(cloud_index[i]) * k * 3], dir.x, dir.y, dir.z);
+    return {rgb[0], rgb[1], rgb[2]};
+}
+
+glm::vec3 GaussianSet::color(std::uint32_t i, const glm::vec3& origin) const {
+    if (!linear_rgb.empty()) return {linear_rgb[3 * i], linear_rgb[3 * i + 1], linear_rgb[3 * i + 2]};
+    const glm::vec3 rgb = display_color(i, origin);
     return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
 

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <embree3/rtcore.h>
@@ -81,6 +82,7 @@ struct GaussianSet {
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: world points and view directions into the cloud's frame
     glm::mat3 normal_matrix{1.0f};        // A^-T: object-space plane normals to world
     bool flat = true;
+    std::optional<GaussianShading> shading;  // Scene::set_gaussian_shading: none follows the render settings
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
     // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
     // chunks are compact in space.
@@ -88,6 +90,7 @@ struct GaussianSet {
     std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
     std::vector<std::uint32_t> prim_index;   // index in the cloud -> primID (the inverse permutation)
     std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
+    std::vector<float> display_rgb;       // degree 0: its display value (0.5 + SH_C0 f_dc, clamped at 0)
     std::vector<GaussianChunk> chunks;
     std::uint32_t chunk_size = 0xffffffffu;  // primitives per chunk (the last may have fewer)
     // What changed since the last build: only the transform (instance transforms rewritten), some Gaussians of the
@@ -104,11 +107,13 @@ struct GaussianSet {
     // Recomputes the primitives of the given Gaussians (cloud indices) only, in the current mode and order; returns
     // the chunk flags as prepare() does.
     std::vector<char> prepare_rows(const std::vector<std::uint32_t>& rows);
-    // linear_rgb of primitive j from the degree-0 SH of its Gaussian.
+    // linear_rgb and display_rgb of primitive j from the degree-0 SH of its Gaussian.
     void store_linear_rgb(std::uint32_t j);
     glm::vec3 world_center(std::uint32_t i) const { return linear * prims[i].center + translation; }
     // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
+    // Its display (sRGB) colour, as SH give it (clamped at 0, not above 1): what BlendSpace::Display composites.
+    glm::vec3 display_color(std::uint32_t i, const glm::vec3& origin) const;
     // World-space unit normal of a flat primitive.
     glm::vec3 world_normal(std::uint32_t i) const { return glm::normalize(normal_matrix * prims[i].row2); }
     // After prepare() changed the chunk's primitives: regroups them and commits the geometry (its BVH is rebuilt

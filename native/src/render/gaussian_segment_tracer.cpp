@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/color_math.h"
+
 namespace raysplats {
 
 // The helpers are inline, as they were when the tracer was one class body with the path integrator: GCC inlines
@@ -42,14 +44,50 @@ inline const GaussianSet& GaussianSegmentTracer::gaussian_of(unsigned geom, std:
     return *s_.gaussians[tg.index];
 }
 
+// A LIT or BAKED_SHADOWED Gaussian of compositing weight `weight` (T_i a_i) joins the segment's shading point
+// (gaussian_shading.h); its colour is produced when the path integrator shades the segment.
+inline void GaussianSegmentTracer::add_shaded(Segment& seg, const GaussianSet& set, std::uint32_t prim,
+                                              GaussianShading shading, const Ray& ray, float t, float weight,
+                                              Sampler& rng) const {
+    GaussianShadingPoint& sp = seg.shading;
+    if (shading == GaussianShading::Lit) sp.albedo_sum += weight * shader_.albedo(set, prim);
+    else sp.shadowed_sum += weight * set.color(prim, ray.o);
+    glm::vec3 n = set.world_normal(prim);
+    if (glm::dot(n, ray.d) > 0.0f) n = -n;  // two-sided: the side the ray comes from
+    sp.add(weight, ray.o + t * ray.d, n, GaussianShader::shadow_bias(set, prim), rng);
+}
+
+// The colour Gaussian `prim` of `set` is composited with, in the settings' blend space (Segment::radiance): linear,
+// or display as its SH give it. With meshes_shadow_gaussians the lights' visibility v from its centre scales its
+// radiance, which is linear light: a display colour c becomes srgb(v * linear(c)), so both spaces darken a shadowed
+// Gaussian alike.
+inline glm::vec3 GaussianSegmentTracer::gaussian_color(const GaussianSet& set, std::uint32_t prim, const Ray& ray,
+                                                       Sampler& rng, Counters& c) const {
+    if (st_.blend_space == BlendSpace::Linear) {
+        glm::vec3 color = set.color(prim, ray.o);
+        if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+        return color;
+    }
+    glm::vec3 color = set.display_color(prim, ray.o);
+    if (st_.meshes_shadow_gaussians) {
+        const float v = shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+        if (v < 1.0f)
+            for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(v * srgb_to_linear(color[ch]));
+    }
+    return color;
+}
+
 // Composites one Gaussian onto the segment (front to back).
 inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim,
                                              float t, float alpha, Sampler& rng, Counters& c) const {
     const GaussianSet& set = gaussian_of(geom, prim);
-    glm::vec3 color = set.color(prim, ray.o);
-    if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
     const float t_before = seg.transmittance;
-    seg.radiance += t_before * alpha * color;
+    const GaussianShading shading = shader_.shading(set.index);
+    if (shading == GaussianShading::Baked) {
+        seg.radiance += t_before * alpha * gaussian_color(set, prim, ray, rng, c);
+    } else {
+        add_shaded(seg, set, prim, shading, ray, t, t_before * alpha, rng);
+    }
     seg.transmittance = t_before * (1.0f - alpha);
     if (t_before > 0.5f && seg.transmittance <= 0.5f) {
         seg.depth = t;
@@ -142,10 +180,12 @@ inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L
     // Every top-level geometry is an instance (a mesh or a chunk of Gaussians).
     if (s_.top[inst].kind == TopGeometry::Gaussians) {
         // Accepted with probability alpha: the estimator of sum T_i a_i c_i is c of the nearest accepted.
+        // In display space too: the expectation of this estimator is the display composite sum T_i a_i c_i, and
+        // the film takes the camera segment's display values to linear only after averaging them (SampleRecord).
         const GaussianSet& set = gaussian_of(inst, prim);
-        glm::vec3 color = set.color(prim, ray.o);
-        if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
-        seg.radiance = color;
+        const GaussianShading shading = shader_.shading(set.index);
+        if (shading == GaussianShading::Baked) seg.radiance = gaussian_color(set, prim, ray, rng, c);
+        else add_shaded(seg, set, prim, shading, ray, tfar, 1.0f, rng);
         seg.transmittance = 0.0f;
         seg.terminated = true;
         seg.depth = tfar;

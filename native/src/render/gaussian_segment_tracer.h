@@ -11,6 +11,7 @@
 #include <glm/glm.hpp>
 
 #include "gaussian_callbacks.h"
+#include "gaussian_shading.h"
 #include "ray.h"
 #include "raysplats/render/renderer.h"
 #include "render_math.h"
@@ -21,7 +22,10 @@ namespace raysplats {
 
 // What a ray met up to its closest opaque mesh hit.
 struct Segment {
-    glm::vec3 radiance{0.0f};  // premultiplied Gaussian radiance
+    // Premultiplied Gaussian radiance sum T_i a_i c_i, in the settings' blend space: linear (BlendSpace::Linear), or
+    // display values as trained (BlendSpace::Display), which the path integrator takes to linear together with
+    // what lies behind: linear(radiance + transmittance * display(behind)).
+    glm::vec3 radiance{0.0f};
     float transmittance = 1.0f;
     bool terminated = false;   // T fell below the threshold (or a stochastic Gaussian was accepted)
     bool mesh = false;
@@ -33,13 +37,15 @@ struct Segment {
     bool depth_at_mesh = false;
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
+    // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).
+    GaussianShadingPoint shading;
 };
 
 class GaussianSegmentTracer {
 public:
     // `shadow` gives the light visibility of Gaussian centres (RenderSettings::meshes_shadow_gaussians).
     GaussianSegmentTracer(const Scene::Impl& scene, const RenderSettings& settings, const ShadowVisibility& shadow)
-        : s_(scene), st_(settings), shadow_(shadow) {}
+        : s_(scene), st_(settings), shadow_(shadow), shader_(scene, settings, shadow) {}
 
     // The segment of one ray, in the settings' compositing mode.
     Segment trace(const Ray& ray, Sampler& rng, Counters& c) const;
@@ -49,10 +55,16 @@ public:
     void trace_packet(const Ray* rays, const bool* active, const float* ends, Sampler* rngs, Segment* segs,
                       Counters& c) const;
 
+    const GaussianShader& shader() const { return shader_; }
+
 private:
     void init_rayhit(RTCRayHit& rh, const Ray& ray, float tnear) const;
     void record_mesh(Segment& seg, float t, unsigned geom, unsigned inst, unsigned prim, float u, float v) const;
     const GaussianSet& gaussian_of(unsigned geom, std::uint32_t& prim) const;
+    void add_shaded(Segment& seg, const GaussianSet& set, std::uint32_t prim, GaussianShading shading, const Ray& ray,
+                    float t, float weight, Sampler& rng) const;
+    glm::vec3 gaussian_color(const GaussianSet& set, std::uint32_t prim, const Ray& ray, Sampler& rng,
+                             Counters& c) const;
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const;
     void init_lane(LaneState& L) const;
@@ -68,6 +80,7 @@ private:
     const Scene::Impl& s_;
     const RenderSettings& st_;
     const ShadowVisibility& shadow_;
+    GaussianShader shader_;
 };
 
 }  // namespace raysplats

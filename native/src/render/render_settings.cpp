@@ -66,11 +66,31 @@ const NameTable<Compositing>& compositing_names() {
     return names;
 }
 
+const NameTable<BlendSpace>& blend_space_names() {
+    static const NameTable<BlendSpace> names{
+        "blend space",
+        {{"DISPLAY", BlendSpace::Display,
+          "Gaussian colours composited as trained, in display (sRGB) space, then made linear: looks as in splat viewers"},
+         {"LINEAR", BlendSpace::Linear,
+          "Gaussian colours made linear, then composited: physically additive, brighter where Gaussians are "
+          "semi-transparent"}}};
+    return names;
+}
+
 const NameTable<GaussianMode>& gaussian_mode_names() {
     static const NameTable<GaussianMode> names{
         "Gaussian mode",
         {{"FLAT", GaussianMode::Flat, "a flat disk evaluated where the ray meets its plane"},
          {"VOLUMETRIC", GaussianMode::Volumetric, "an ellipsoid (uses the stored thickness)"}}};
+    return names;
+}
+
+const NameTable<GaussianShading>& gaussian_shading_names() {
+    static const NameTable<GaussianShading> names{
+        "Gaussian shading",
+        {{"BAKED", GaussianShading::Baked, "the captured light, as trained"},
+         {"LIT", GaussianShading::Lit, "surface elements shaded by the scene's lights and world, with shadows"},
+         {"BAKED_SHADOWED", GaussianShading::BakedShadowed, "the captured light times the lights' visibility"}}};
     return names;
 }
 
@@ -97,12 +117,16 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
          {"seed", T::Integer, "seed of the sampling pattern (0 .. 2^32 - 1)", &member<&S::seed>, {}},
          {"compositing", T::Name, "how Gaussians along a ray are combined", &named<&S::compositing, &compositing_names>,
           compositing_names().names()},
+         {"blend_space", T::Name, "colour space Gaussians along a ray are composited in (DISPLAY: as splat viewers)",
+          &named<&S::blend_space, &blend_space_names>, blend_space_names().names()},
          {"transmittance_threshold", T::Real, "stop compositing once the transmittance is below this, in [0, 1)",
           &member<&S::transmittance_threshold>, {}},
          {"gaussian_mode", T::Name, "geometry the Gaussians are traced as",
           &named<&S::gaussian_mode, &gaussian_mode_names>, gaussian_mode_names().names()},
          {"meshes_shadow_gaussians", T::Bool, "lights' visibility from each Gaussian's centre darkens it",
           &member<&S::meshes_shadow_gaussians>, {}},
+         {"gaussian_shading", T::Name, "how Gaussians' colours are produced (clouds without their own shading)",
+          &named<&S::gaussian_shading, &gaussian_shading_names>, gaussian_shading_names().names()},
          {"tile_size", T::Integer, "edge of the square tiles rendered in parallel, in pixels", &member<&S::tile_size>, {}},
          {"gather_buffer_size", T::Integer, "k of the per-ray k-nearest Gaussian buffer (any k gives the same image)",
           &member<&S::gather_buffer_size>, {}},

@@ -266,14 +266,17 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                 gaussian_hits += counters.gaussian_hits;
                 candidates += counters.candidates;
                 group_candidates += counters.group_candidates;
-                const long long done = ++tile_passes_done;
                 if (progress) {
+                    // Counted under the lock, so that the values reported never go backwards.
                     std::lock_guard<std::mutex> lock(progress_mutex);
-                    progress(float(double(done) / tile_passes));
+                    progress(float(double(++tile_passes_done) / tile_passes));
+                } else {
+                    ++tile_passes_done;
                 }
             }
         });
-        if (is_cancelled()) break;
+        // A pass counts when every tile finished it, even if a cancel came after the last one did.
+        if (tile_passes_done.load() < (long long)(sample + 1) * tile_count) break;
         samples_done = sample + 1;
         // Cycles checks after every kAdaptiveStep samples once the minimum is reached (AdaptiveSampling::need_filter).
         bool converged = false;

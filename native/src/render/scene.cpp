@@ -195,6 +195,11 @@ void Scene::set_gaussians_transform(std::uint32_t index, const Matrix4& object_t
     if (set.dirty == GaussianSet::Dirty::None) set.dirty = GaussianSet::Dirty::Transform;
 }
 
+void Scene::set_gaussian_shading(std::uint32_t index, std::optional<GaussianShading> shading) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    impl_->gaussians[index]->shading = shading;
+}
+
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());
     impl_->lights.push_back(light);

@@ -22,6 +22,17 @@ using FloatBuffer = std::vector<float, DefaultInitAllocator<float>>;
 // What one camera sample contributes to its pixel. Produced by the path integrator for every sample.
 struct SampleRecord {
     std::array<float, 3> radiance{0.0f, 0.0f, 0.0f};  // linear
+    // RenderSettings::blend_space Display: the camera ray's first run of Gaussians, composited in display space
+    // (D = sum T_i a_i c_i, display colours; T its transmittance) and the linear radiance behind it times T. The film
+    // combines them per pixel from their means over the samples (FilmTile::write_to):
+    //     rgb = mean(radiance) + linear(mean(D) + mean(T) display(mean(T L_behind) / mean(T))),
+    // which is linear(D + T display(L_behind)) for one ray, and to which stochastic compositing (one display colour
+    // c_i with probability T_i a_i, else D = 0, T = 1 and what lies behind) converges as samples grow. `radiance` is
+    // then only the area lights seen inside that run. Unused (false, zeros) in linear blend space.
+    bool display_blend = false;
+    std::array<float, 3> display_radiance{0.0f, 0.0f, 0.0f};
+    float display_transmittance = 0.0f;
+    std::array<float, 3> behind_radiance{0.0f, 0.0f, 0.0f};
     float alpha = 0.0f;    // coverage: 1 - transmittance of the primary segment (1 where an opaque surface was hit)
     // Distance along the camera ray to the first surface where the accumulated opacity reaches 0.5; +inf where
     // there is none.
@@ -135,10 +146,13 @@ public:
     int sample_count(int x, int y) const { return int(counts_[index(x, y)]); }
     // Cycles' per-pixel noise estimate (film_adaptive_sampling_convergence_check; Dammertz et al. 2010, "A
     // hierarchical automatic stopping condition for Monte Carlo global illumination", section 2.1): with I the
-    // mean radiance of the pixel's n samples and A the mean of its odd-numbered ones,
+    // pixel's linear RGB from its n samples and A that from its odd-numbered ones, each combined as write_to()
+    // combines them (the mean radiance; in display blend space plus linear(mean D + mean T display(...)) of the
+    // samples' display parts, see SampleRecord),
     //   error = (|I.r - A.r| + |I.g - A.g| + |I.b - A.b|) / (0.0001 + N),  N = sqrt(s) if s < 1 else s,
     //   s = I.r + I.g + I.b.
-    // |I - A| is half the difference of the even and odd halves' means, so about the standard error of I: the
+    // |I - A| is half the difference of the even and odd halves' means (to first order where the display
+    // combination bends them), so about the standard error of I: the
     // estimate falls as 1 / sqrt(n). Relative to sqrt(s) in the dark (where the eye sees noise more), to s where
     // bright. Needs `noise_estimates` and n >= 2.
     float noise_estimate(int x, int y) const;
@@ -158,6 +172,11 @@ private:
     std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean, Sum) or first samples (FirstSample)
     std::vector<std::uint32_t> counts_;  // samples per pixel
     std::vector<float> odd_radiance_;    // RGB sums of the odd-numbered samples (noise_estimates only)
+    // Display blend space: per pixel the sums of D (3), T (1) and T L_behind (3) and the count of samples that had
+    // them (SampleRecord); empty until a sample has them. odd_display_sums_: the same over the odd-numbered samples
+    // (noise_estimates only), so that noise_estimate() compares pixel values combined as write_to() combines them.
+    std::vector<float> display_sums_;
+    std::vector<float> odd_display_sums_;
 };
 
 }  // namespace raysplats

@@ -15,6 +15,17 @@ enum class Compositing {
     Stochastic,  // one traversal per sample, each candidate accepted with probability alpha, nearest kept
 };
 
+// The colour space in which Gaussian colours along a ray are composited (DESIGN §4). Colours from SH are display
+// (sRGB) values, and scenes are trained, and every splat viewer draws them, by compositing those values as they are
+// (C = sum T_i a_i c_i, then shown as is): Display reproduces that, converting the composite to linear where it meets
+// meshes, lights and the film, so an unedited scene under Blender's Standard view transform looks as in its viewer.
+// Linear composites the decoded (linear) colours, physically additive light; it makes every semi-transparent pixel
+// (haze, floaters, soft edges) brighter than the scene was trained to be (2.8-4.5x on real scenes).
+enum class BlendSpace {
+    Display,  // as trained and as splat viewers draw (the default)
+    Linear,   // linear light
+};
+
 // The pixel filter: how camera samples spread around their pixel's centre (Cycles' Film > Pixel Filter; see
 // src/render/pixel_filter.h for the shapes and what their widths mean).
 enum class PixelFilter {
@@ -30,11 +41,16 @@ struct RenderSettings {
     int max_bounces = 4;     // 0 = direct light only, up to 1024
     std::uint32_t seed = 0;  // the image is a function of the seed only (not of thread scheduling)
     Compositing compositing = Compositing::Sorted;
+    BlendSpace blend_space = BlendSpace::Display;
     float transmittance_threshold = 1e-3f;  // stop compositing when T drops below this, in [0, 1)
     GaussianMode gaussian_mode = GaussianMode::Flat;
     // Gaussians carry baked radiance; with this their colour is scaled by the lights' visibility from the
     // Gaussian centre (meshes only occlude), so meshes cast shadows on splats.
     bool meshes_shadow_gaussians = false;
+    // How Gaussians' colours are produced (BAKED: as trained; LIT: shaded by the lights and world; BAKED_SHADOWED:
+    // baked times the lights' visibility), for every Gaussian cloud without its own (Scene::set_gaussian_shading).
+    // meshes_shadow_gaussians applies to BAKED clouds only.
+    GaussianShading gaussian_shading = GaussianShading::Baked;
     int tile_size = 32;
     // k of the per-ray k-nearest buffer (1 .. 128). Any k gives the same image; it trades re-traces against
     // culling. The buffer is also cut where the transmittance falls below the threshold. 96 covers the ~34
@@ -110,8 +126,10 @@ PixelRect render_region_of(const RenderSettings& settings);
 
 // The names of the enums above and of GaussianMode ("SORTED", "FLAT", ...).
 const NameTable<Compositing>& compositing_names();
+const NameTable<BlendSpace>& blend_space_names();
 const NameTable<GaussianMode>& gaussian_mode_names();
 const NameTable<PixelFilter>& pixel_filter_names();
+const NameTable<GaussianShading>& gaussian_shading_names();
 
 // Every field of RenderSettings by name (the field's own name), with its type and what it sets.
 const ParameterTable<RenderSettings>& render_setting_parameters();

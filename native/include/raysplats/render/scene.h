@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "raysplats/gaussian_cloud.h"
@@ -22,6 +23,13 @@ namespace raysplats {
 enum class GaussianMode {
     Flat,        // disk in the plane of the two largest axes, evaluated exactly at the ray-plane hit
     Volumetric,  // ellipsoid, response at the point of maximum response along the ray (3DGRT)
+};
+
+// How a Gaussian's colour is produced (src/render/gaussian_shading.h has the model).
+enum class GaussianShading {
+    Baked,          // its captured (SH) radiance, as trained
+    Lit,            // a two-sided Lambertian surface element (albedo: its colour, delit) shaded by lights and world
+    BakedShadowed,  // its captured radiance times the lights' visibility (shadows of meshes and Gaussians)
 };
 
 // A triangle mesh handed over without copies. All arrays are the caller's.
@@ -70,6 +78,9 @@ public:
     // Moves Gaussian cloud `index` without new data: the next build rewrites only instance transforms.
     void set_gaussians_transform(std::uint32_t index, const Matrix4& object_to_world);
     void update_mesh(std::uint32_t index, const MeshDesc& mesh);
+    // Gaussian cloud `index`'s own shading, or none to follow RenderSettings::gaussian_shading (the default). No
+    // rebuild is needed.
+    void set_gaussian_shading(std::uint32_t index, std::optional<GaussianShading> shading);
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).

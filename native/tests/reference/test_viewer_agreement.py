@@ -1,0 +1,176 @@
+"""The renderer against what splat viewers show (issue 15): real scenes rendered by RaySplats (through the built
+module) and by the independent numpy 3DGS EWA rasterizer (ewa_rasterizer.py), from two views each, compared as a
+display shows them (sRGB, clamped). Volumetric Gaussians in the default DISPLAY blend space must reach MIN_PSNR dB on
+every view (small.splat: 25 dB); LINEAR blend space (the engine's compositing before issue 15) must fall short of it on the hazy unicorn,
+so the test tells the two apart.
+
+    python3 test_viewer_agreement.py MODULE_DIR DATA_DIR [--table]
+
+--table prints PSNR per scene, view, Gaussian mode and blend space (the figures of the issue's note) and asserts
+nothing. The renderer draws its camera rays through the pixel centres with one sample, black world, compositing
+stopped at T < 1e-4 and Gaussians cut near the camera (at 1 % of its distance to the scene), the rasterizer's
+conventions; what still differs is
+the geometry of a Gaussian (a ray's maximum response of the 3D ellipsoid, or a disk, against an EWA-projected 2D
+Gaussian with 0.3 px^2 dilation), which is why agreement is ~30-40 dB and not exact.
+"""
+import math
+import os
+import sys
+import unittest
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import ewa_rasterizer as ewa  # noqa: E402
+
+MODULE_DIR = sys.argv[1] if len(sys.argv) > 1 else None
+DATA_DIR = sys.argv[2] if len(sys.argv) > 2 else None
+TABLE = "--table" in sys.argv
+sys.argv[1:] = [a for a in sys.argv[3:] if a != "--table"]  # unittest's own arguments
+if MODULE_DIR:
+    sys.path.insert(0, MODULE_DIR)
+
+# The real scenes under 100 k Gaussians that the reference can read (guitar's SuperSplat compressed PLY has no
+# reference reader here).
+SCENES = ("small_sh3_inria.ply", "donut_sh0.ply", "unicorn_sh3_reordered.ply", "small.splat")
+# 640 x 480: at lower resolutions many Gaussians are smaller than a pixel, where the rasterizer's 0.3 px^2 dilation
+# widens them and one ray per pixel point-samples them, which dominates the difference (at 160 x 120 the unicorn
+# agrees to 22 dB in either blend space).
+WIDTH, HEIGHT = 640, 480
+LENS, SENSOR = 30.0, 36.0  # mm: horizontal field of view 61.9 degrees
+# Volumetric, DISPLAY blend space, every view (measured 30.9-36.4 dB; small.splat 26.1-26.5 dB, whose difference is
+# not the blend space: LINEAR is at 18.9-20.9 dB there; its cause is not found yet).
+MIN_PSNR = {"small_sh3_inria.ply": 30.0, "donut_sh0.ply": 30.0, "unicorn_sh3_reordered.ply": 30.0, "small.splat": 25.0}
+# Azimuth and elevation (degrees) of the two views around each scene's median, at DISTANCE x its 10-90 % extent.
+VIEWS = {"front": (0.0, 15.0), "side": (120.0, 35.0)}
+DISTANCE = 1.3
+
+
+def look_at(eye, target, up):
+    """Blender camera matrix (camera to world; the camera looks down -Z, +Y up)."""
+    f = target - eye
+    f /= np.linalg.norm(f)
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = r, u, -f, eye
+    return m
+
+
+def view_camera(splats, view):
+    """The camera of `view`: Blender's matrix, and the OpenCV world-to-view matrix the rasterizer takes."""
+    p = splats.positions.astype(np.float64)
+    center = np.median(p, axis=0)
+    extent = float(np.max(np.percentile(p, 90, axis=0) - np.percentile(p, 10, axis=0)))
+    azimuth, elevation = (math.radians(a) for a in VIEWS[view])
+    # The scenes are stored y down (COLMAP / 3DGS): up is -y; the orbit turns about it, starting at -z.
+    direction = np.array([math.sin(azimuth) * math.cos(elevation), -math.sin(elevation),
+                          -math.cos(azimuth) * math.cos(elevation)])
+    camera_to_world = look_at(center + DISTANCE * extent * direction, center, np.array([0.0, -1.0, 0.0]))
+    world_to_view = np.diag([1.0, -1.0, -1.0, 1.0]) @ np.linalg.inv(camera_to_world)
+    return camera_to_world, world_to_view, 0.01 * DISTANCE * extent
+
+
+def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend_space):
+    scene = native.RenderScene()
+    scene.add_material()
+    scene.add_gaussians(splats.positions, splats.rotations, splats.scales, splats.opacities, splats.sh)
+    scene.set_world([0.0, 0.0, 0.0])
+    scene.build(gaussian_mode)
+    camera = {"type": "PERSP", "matrix": camera_to_world.astype(np.float32), "lens": LENS, "sensor_width": SENSOR,
+              "sensor_fit": "HORIZONTAL", "clip_start": near, "clip_end": 1e6}
+    settings = {"width": WIDTH, "height": HEIGHT, "samples": 1, "jitter": False, "max_bounces": 0,
+                "gaussian_mode": gaussian_mode, "blend_space": blend_space, "transmittance_threshold": 1e-4}
+    job = native.RenderJob(scene, camera, settings)
+    while not job.wait(1.0):
+        pass
+    rgba = np.asarray(job.result()["rgba"], np.float64).reshape(HEIGHT, WIDTH, 4)
+    return ewa.linear_to_srgb(rgba[..., :3])  # as Blender's Standard view transform shows the linear film
+
+
+def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR")):
+    """{(scene, view, mode, space): PSNR}."""
+    results = {}
+    fx = WIDTH * LENS / SENSOR
+    for name in SCENES:
+        splats = ewa.read_splats(os.path.join(data_dir, name))
+        for view in VIEWS:
+            camera_to_world, world_to_view, near = view_camera(splats, view)
+            reference = ewa.rasterize(splats, world_to_view, fx, fx, WIDTH, HEIGHT, near=near)
+            for mode in modes:
+                for space in spaces:
+                    image = render_raysplats(native, splats, camera_to_world, near, mode, space)
+                    results[(name, view, mode, space)] = ewa.psnr(reference, image)
+    return results
+
+
+class ReferenceRasterizer(unittest.TestCase):
+    """The reference's own conventions, on cases with known answers (so that the comparison below rests on a
+    rasterizer that is right)."""
+
+    def test_one_gaussian_head_on(self):
+        # An isotropic Gaussian of scale s at depth z straight ahead: a 2D Gaussian of variance (f s / z)^2 + 0.3 px^2
+        # at the image centre, peak alpha = opacity.
+        s, z, f = 0.05, 2.0, 100.0
+        splats = ewa.Splats([[0, 0, z]], [[1, 0, 0, 0]], [[s, s, s]], [0.8], np.full((1, 1, 3), (0.7 - 0.5) / ewa.SH_C0))
+        image = ewa.rasterize(splats, np.eye(4), f, f, 64, 64)
+        var = (f * s / z) ** 2 + 0.3
+        for px, py in ((32, 32), (35, 30), (40, 32)):
+            dx, dy = px + 0.5 - 32.0, py + 0.5 - 32.0
+            alpha = 0.8 * math.exp(-0.5 * (dx * dx + dy * dy) / var)
+            self.assertAlmostEqual(image[py, px, 0], 0.7 * alpha if alpha >= 1 / 255 else 0.0, places=6)
+
+    def test_front_to_back_in_display_space(self):
+        # Two opaque-ish Gaussians, the nearer one (red) given second: sorting puts it first; C = a1 c1 + (1-a1) a2 c2.
+        sh = np.zeros((2, 1, 3))
+        sh[0, 0] = (np.array([0.0, 0.0, 1.0]) - 0.5) / ewa.SH_C0
+        sh[1, 0] = (np.array([1.0, 0.0, 0.0]) - 0.5) / ewa.SH_C0
+        splats = ewa.Splats([[0, 0, 3], [0, 0, 2]], [[1, 0, 0, 0]] * 2, [[0.5] * 3] * 2, [0.6, 0.5], sh)
+        image = ewa.rasterize(splats, np.eye(4), 50.0, 50.0, 8, 8)
+        red, blue = image[4, 4, 0], image[4, 4, 2]
+        a1 = 0.5 * math.exp(-0.5 * 0.5 ** 2 * 2 / ((50 * 0.5 / 2) ** 2 + 0.3))
+        self.assertAlmostEqual(red, a1, places=6)
+        self.assertGreater(blue, 0.0)
+        self.assertLess(blue, 0.6 * (1 - a1) + 1e-9)
+
+    def test_sh_degree_one_sign_convention(self):
+        # Reference computeColorFromSH: - C1 y sh1 + C1 z sh2 - C1 x sh3.
+        sh = np.zeros((1, 4, 3))
+        sh[0, 1] = 1.0
+        self.assertAlmostEqual(ewa.sh_to_display(sh, np.array([[0.0, 1.0, 0.0]]))[0, 0], 0.5 - ewa.SH_C1)
+
+
+@unittest.skipUnless(MODULE_DIR and DATA_DIR, "needs the module and data directories")
+class ViewerAgreement(unittest.TestCase):
+    def test_display_blend_space_matches_the_viewer(self):
+        import _native
+        results = measure(_native, DATA_DIR)
+        for (name, view, mode, space), value in results.items():
+            if space == "DISPLAY":
+                self.assertGreaterEqual(value, MIN_PSNR[name], f"{name} {view} {mode}: {value:.2f} dB")
+        # Linear compositing is the grey halo the issue reported: the hazy unicorn falls short by several dB.
+        for view in VIEWS:
+            linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR")]
+            display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY")]
+            self.assertLess(linear, display - 3.0, f"unicorn {view}: linear {linear:.2f} dB, display {display:.2f} dB")
+
+
+def print_table(module_dir, data_dir):
+    sys.path.insert(0, module_dir)
+    import _native
+    results = measure(_native, data_dir, modes=("VOLUMETRIC", "FLAT"))
+    print(f"{'scene':<28} {'view':<6} {'mode':<11} {'LINEAR (before)':>16} {'DISPLAY (now)':>14}")
+    for name in SCENES:
+        for view in VIEWS:
+            for mode in ("VOLUMETRIC", "FLAT"):
+                print(f"{name:<28} {view:<6} {mode:<11} {results[(name, view, mode, 'LINEAR')]:>16.2f} "
+                      f"{results[(name, view, mode, 'DISPLAY')]:>14.2f}")
+
+
+if __name__ == "__main__":
+    if TABLE:
+        print_table(MODULE_DIR, DATA_DIR)
+    else:
+        unittest.main()
