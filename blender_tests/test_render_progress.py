@@ -33,6 +33,7 @@ class _Layer:
 
 class _Result:
     def __init__(self, width, height):
+        self.resolution_x, self.resolution_y = width, height
         self.layers = [_Layer(width, height)]
 
 

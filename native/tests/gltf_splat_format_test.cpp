@@ -196,10 +196,13 @@ protected:
             c.scales[3 * i] = c.scales[3 * i + 1] = c.scales[3 * i + 2] = 0.1f;
             c.opacities[i] = 0.5f;
         }
-        // The buffer (.bin) is named after the document, so every edited copy reads the same one.
-        write_splats_gltf("edit.gltf", c);
-        doc = load_json(tmp_path("edit.gltf"));
+        // The buffer (.bin) is named after the document, so every edited copy reads the same one. One document per
+        // test: ctest runs these tests in parallel processes.
+        edit = std::string("edit_") + ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".gltf";
+        write_splats_gltf(edit, c);
+        doc = load_json(tmp_path(edit));
     }
+    std::string edit;
     nlohmann::json& primitive() { return doc["meshes"][0]["primitives"][0]; }
     int accessor(const std::string& semantic) { return primitive()["attributes"][semantic].get<int>(); }
     nlohmann::json doc;
@@ -207,38 +210,38 @@ protected:
 
 TEST_F(GltfSplatErrors, AccessorCountBeyondItsBuffer) {
     doc["accessors"][accessor("KHR_gaussian_splatting:SCALE")]["count"] = 1u << 30;
-    expect_refused(save_json("edit.gltf", doc), {"SCALE", "do not fit"});
+    expect_refused(save_json(edit, doc), {"SCALE", "do not fit"});
 }
 
 TEST_F(GltfSplatErrors, AttributesOfDifferentCounts) {
     doc["accessors"][accessor("KHR_gaussian_splatting:OPACITY")]["count"] = 3;
-    expect_refused(save_json("edit.gltf", doc), {"different counts"});
+    expect_refused(save_json(edit, doc), {"different counts"});
 }
 
 TEST_F(GltfSplatErrors, MissingRequiredAttribute) {
     primitive()["attributes"].erase("KHR_gaussian_splatting:OPACITY");
-    expect_refused(save_json("edit.gltf", doc), {"KHR_gaussian_splatting:OPACITY is missing"});
+    expect_refused(save_json(edit, doc), {"KHR_gaussian_splatting:OPACITY is missing"});
 }
 
 TEST_F(GltfSplatErrors, PartialShDegree) {
     primitive()["attributes"].erase("KHR_gaussian_splatting:SH_DEGREE_1_COEF_2");
-    expect_refused(save_json("edit.gltf", doc), {"degree 1 is partially defined"});
+    expect_refused(save_json(edit, doc), {"degree 1 is partially defined"});
 }
 
 TEST_F(GltfSplatErrors, WrongModeAndComponentType) {
     primitive()["mode"] = 4;
-    expect_refused(save_json("edit.gltf", doc), {"mode POINTS"});
+    expect_refused(save_json(edit, doc), {"mode POINTS"});
     primitive()["mode"] = 0;
     doc["accessors"][accessor("KHR_gaussian_splatting:ROTATION")]["componentType"] = 5121;  // UNSIGNED_BYTE
-    expect_refused(save_json("edit.gltf", doc), {"ROTATION", "not allowed"});
+    expect_refused(save_json(edit, doc), {"ROTATION", "not allowed"});
 }
 
 TEST_F(GltfSplatErrors, NodeCycleAndHeavyInstancing) {
     doc["nodes"][0]["children"] = {0};
-    expect_refused(save_json("edit.gltf", doc), {"cycle"});
+    expect_refused(save_json(edit, doc), {"cycle"});
     doc["nodes"][0].erase("children");
     for (int k = 0; k < 40; ++k) doc["scenes"][0]["nodes"].push_back(0);
-    expect_refused(save_json("edit.gltf", doc), {"more than 16 times"});
+    expect_refused(save_json(edit, doc), {"more than 16 times"});
 }
 
 TEST_F(GltfSplatErrors, BufferThatIsNotARegularFile) {
@@ -247,7 +250,7 @@ TEST_F(GltfSplatErrors, BufferThatIsNotARegularFile) {
     std::filesystem::remove(link);
     std::filesystem::create_symlink("/dev/zero", link);
     doc["buffers"][0]["uri"] = "zero.bin";
-    expect_refused(save_json("edit.gltf", doc), {"zero.bin", "not a regular file"});
+    expect_refused(save_json(edit, doc), {"zero.bin", "not a regular file"});
 }
 
 TEST_F(GltfSplatErrors, GltfWithoutSplatsPointsToBlendersImporter) {

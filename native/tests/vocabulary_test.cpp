@@ -41,6 +41,13 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "caustics_refractive", false);
     table.set(s, "pixel_filter", std::string("BLACKMAN_HARRIS"));
     table.set(s, "filter_width", 1.5);
+    table.set(s, "adaptive_sampling", true);
+    table.set(s, "adaptive_threshold", 0.005);
+    table.set(s, "adaptive_min_samples", std::int64_t(24));
+    table.set(s, "region_x", std::int64_t(10));
+    table.set(s, "region_y", std::int64_t(20));
+    table.set(s, "region_width", std::int64_t(30));
+    table.set(s, "region_height", std::int64_t(40));
     table.set(s, "gaussian_shading", std::string("BAKED_SHADOWED"));
     table.set(s, "blend_space", std::string("LINEAR"));
     EXPECT_EQ(s.width, 1280);
@@ -54,12 +61,16 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_FALSE(s.caustics_refractive);
     EXPECT_EQ(s.pixel_filter, PixelFilter::BlackmanHarris);
     EXPECT_EQ(s.filter_width, 1.5f);
+    EXPECT_TRUE(s.adaptive_sampling);
+    EXPECT_EQ(s.adaptive_threshold, 0.005f);
+    EXPECT_EQ(s.adaptive_min_samples, 24);
+    EXPECT_EQ(s.region_x + s.region_y + s.region_width + s.region_height, 100);
     EXPECT_EQ(s.gaussian_shading, GaussianShading::BakedShadowed);
     EXPECT_EQ(s.blend_space, BlendSpace::Linear);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 20u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 27u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

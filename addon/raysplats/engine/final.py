@@ -4,6 +4,8 @@
 # bulk write per pass into the render result (passes.py).
 import time
 
+import numpy as np
+
 from .. import native
 from . import passes, sync
 
@@ -13,17 +15,22 @@ POLL_SECONDS = 0.05
 UPDATE_SECONDS = 1.0
 
 # Diagnostics of the last final render, for status displays and tests: the samples of each partial result shown
-# (with its time from the render's start), and the samples and cancel state of the image kept.
-last_render = {"partial_results": [], "samples": 0, "cancelled": False}
+# (with its time from the render's start), and the samples and cancel state of the image kept, its mean samples per
+# pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h).
+last_render = {"partial_results": [], "samples": 0, "cancelled": False, "mean_samples": 0.0, "camera_rays": 0,
+               "region": None, "render_seconds": 0.0}
 
 
 def _border(scene, width, height):
-    """Pixel rectangle (x, y, w, h) of the render border, y from the bottom as Blender counts it."""
+    """Pixel rectangle (x, y, w, h) of the render border, y from the bottom as Blender counts it: Blender's own
+    arithmetic (render_init_from_main: float32 border times the size, truncated), so that it matches the size of the
+    render result Blender makes for the border (the caller checks)."""
     render = scene.render
     if not render.use_border:
         return 0, 0, width, height
-    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
-    y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
+    f32 = np.float32
+    x0, x1 = int(f32(render.border_min_x) * f32(width)), int(f32(render.border_max_x) * f32(width))
+    y0, y1 = int(f32(render.border_min_y) * f32(height)), int(f32(render.border_max_y) * f32(height))
     return x0, y0, max(1, x1 - x0), max(1, y1 - y0)
 
 
@@ -42,19 +49,26 @@ def render_final(engine, depsgraph):
     engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | Building BVH")
     render_scene.build(settings.gaussian_mode)
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
-    job = core.RenderJob(render_scene, camera, sync.render_settings(scene, width, height, settings.samples))
+    render_settings = sync.render_settings(scene, width, height, settings.samples, adaptive=True)
 
-    # Film rows run top to bottom; Blender's from the bottom up.
+    # With a render border (cropped or not) Blender's render result is the border's size; Blender places it in the
+    # frame itself (uncropped: the rest transparent). The core renders only the border's pixels, at their place in
+    # the whole image (the same samples as a whole render there). begin_result's rectangle is clipped to Blender's
+    # result, so asking for the whole frame gives the border's size as Blender computed it, which wins over ours
+    # should they ever differ. Film rows run top to bottom, Blender's from the bottom up.
     x, y, w, h = _border(scene, width, height)
+    result = engine.begin_result(0, 0, width, height)
+    w, h = result.resolution_x, result.resolution_y
+    x, y = min(x, width - w), min(y, height - h)
     rows = slice(height - y - h, height - y)
     cols = slice(x, x + w)
-    if scene.render.use_border and not scene.render.use_crop_to_border:
-        result = engine.begin_result(x, y, w, h)
-    else:
-        result = engine.begin_result(0, 0, w, h)
+    if (w, h) != (width, height):
+        render_settings.update(region_x=x, region_y=height - y - h, region_width=w, region_height=h)
     last_render.update(partial_results=[], samples=0, cancelled=False)
     started = time.perf_counter()
+    job = None
     try:
+        job = core.RenderJob(render_scene, camera, render_settings)
         shown_samples, shown_at = 0, started
         while not job.wait(POLL_SECONDS):
             if engine.test_break():
@@ -71,16 +85,21 @@ def render_final(engine, depsgraph):
                 last_render["partial_results"].append((shown_at - started, shown_samples))
         film = job.result()
         # Cancelled (Esc), the film holds the sample passes done: kept, as Cycles keeps them.
+        # Adaptive sampling: pixels took fewer samples than the maximum; the mean says how many.
+        mean_samples = film["camera_rays"] / (w * h)
         print(f"RaySplats render: sync {t_sync:.2f} s, render {film['render_seconds']:.2f} s, "
-              f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''}, "
-              f"{stats.splats:,} splats, {stats.triangles:,} triangles")
+              f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''} "
+              f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
+              f"{stats.triangles:,} triangles")
         passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
-        # Any failure (a pass Blender refuses, an error in the loop): the render thread stops now rather than when
-        # the traceback lets the job go, and no half-written result is left open in Blender.
-        job.cancel()
+        # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now
+        # rather than when the traceback lets the job go, and no half-written result is left open in Blender.
+        if job is not None:
+            job.cancel()
         engine.end_result(result, cancel=True)
         raise
     engine.end_result(result)
-    last_render.update(samples=film["samples"], cancelled=film["cancelled"])
+    last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples,
+                       camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"])
     engine.update_progress(1.0)

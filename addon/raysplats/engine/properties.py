@@ -9,6 +9,18 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, Po
 class RaySplatsRenderSettings(bpy.types.PropertyGroup):
     samples: IntProperty(name="Samples", default=16, min=1, max=1 << 16,
                          description="Samples per pixel of the final render")
+    # Cycles' names, ranges and defaults (Sampling > Render > Noise Threshold), so that settings read the same.
+    use_adaptive_sampling: BoolProperty(
+        name="Noise Threshold", default=True,
+        description="Automatically reduce the number of samples per pixel based on estimated noise level")
+    adaptive_threshold: FloatProperty(
+        name="Noise Threshold", default=0.01, min=0.0, max=1.0, soft_min=0.001, step=0.1, precision=4,
+        description="Noise level step to stop sampling at, lower values reduce noise at the cost of render time. "
+                    "Zero for automatic setting based on number of AA samples")
+    adaptive_min_samples: IntProperty(
+        name="Min Samples", default=0, min=0, max=4096,
+        description="Minimum AA samples for adaptive sampling, to discover noisy features before stopping "
+                    "sampling. Zero for automatic setting based on noise threshold")
     viewport_samples: IntProperty(name="Viewport Samples", default=16, min=1, max=1 << 12,
                                   description="Samples the viewport accumulates before it stops refining")
     max_bounces: IntProperty(name="Max Bounces", default=4, min=0, max=1024,

@@ -438,9 +438,11 @@ def camera_settings(scene, camera_object, width, height):
     return camera
 
 
-def render_settings(scene, width, height, samples, seed_offset=0):
+def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False):
+    """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
+    viewport refines in passes of its own and leaves it off)."""
     settings = scene.raysplats
-    return {
+    values = {
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
         "blend_space": settings.blend_space,
@@ -450,6 +452,10 @@ def render_settings(scene, width, height, samples, seed_offset=0):
         "transparent_background": bool(scene.render.film_transparent),
         "pixel_filter": settings.pixel_filter, "filter_width": settings.filter_width,
     }
+    if adaptive and settings.use_adaptive_sampling:
+        values.update(adaptive_sampling=True, adaptive_threshold=settings.adaptive_threshold,
+                      adaptive_min_samples=settings.adaptive_min_samples)
+    return values
 
 
 def resolution(scene):

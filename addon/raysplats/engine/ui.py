@@ -33,7 +33,19 @@ class RAYSPLATS_RENDER_PT_sampling(RaySplatsPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         settings = context.scene.raysplats
-        layout.prop(settings, "samples", text="Render")
+        # As Cycles' Sampling > Render: the noise threshold with its check box on one row, then the samples (the
+        # maximum once adaptive sampling is on) and the minimum.
+        heading = layout.column(align=True, heading="Noise Threshold")
+        row = heading.row(align=True)
+        row.prop(settings, "use_adaptive_sampling", text="")
+        sub = row.row()
+        sub.active = settings.use_adaptive_sampling
+        sub.prop(settings, "adaptive_threshold", text="")
+        column = layout.column(align=True)
+        column.prop(settings, "samples", text="Max Samples" if settings.use_adaptive_sampling else "Render")
+        sub = column.row(align=True)
+        sub.active = settings.use_adaptive_sampling
+        sub.prop(settings, "adaptive_min_samples", text="Min Samples")
         layout.prop(settings, "viewport_samples", text="Viewport")
         layout.prop(settings, "seed")
 

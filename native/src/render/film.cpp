@@ -39,6 +39,27 @@ namespace {
 // FilmTile::display_sums_ per pixel: D (3), T, T L_behind (3), samples.
 constexpr std::size_t kDisplaySums = 8;
 
+void add_display_parts(float* sums, const SampleRecord& record) {
+    for (int k = 0; k < 3; ++k) {
+        sums[k] += record.display_radiance[k];
+        sums[4 + k] += record.behind_radiance[k];
+    }
+    sums[3] += record.display_transmittance;
+    sums[7] += 1.0f;
+}
+
+// What a pixel's display parts add to its linear RGB (SampleRecord): linear(mean D + mean T display(mean(T L_behind)
+// / mean T)) in channel k. Where no sample met a Gaussian (D = 0, T = 1) that is mean L_behind, taken as it is.
+// sums[7] > 0.
+inline float display_part(const float* sums, int k) {
+    const float n = sums[7], t = sums[3] / n;
+    const bool gaussians = sums[3] != n || sums[0] != 0.0f || sums[1] != 0.0f || sums[2] != 0.0f;
+    const float behind = sums[4 + k] / n;
+    return !gaussians  ? behind
+           : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
+                      : srgb_to_linear_tabulated(sums[k] / n);
+}
+
 void radiance_and_coverage(const SampleRecord& s, float* out) {
     out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
 }
@@ -46,6 +67,7 @@ void depth_of(const SampleRecord& s, float* out) { out[0] = s.depth; }
 void normal_of(const SampleRecord& s, float* out) { out[0] = s.normal[0], out[1] = s.normal[1], out[2] = s.normal[2]; }
 void coverage_of(const SampleRecord& s, float* out) { out[0] = s.alpha; }
 void gaussian_count_of(const SampleRecord& s, float* out) { out[0] = s.gaussian_count; }
+void one_sample(const SampleRecord&, float* out) { out[0] = 1.0f; }
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
 
@@ -61,18 +83,22 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::GaussianCount, "gaussian_count", "Gaussian Count", "X", "VALUE", SampleCombination::Mean, 0.0f,
      "Debug: Gaussians the camera ray composited (sorted) or accepted (stochastic), mean over samples",
      gaussian_count_of},
+    // Cycles' name for the same debug pass; Cycles divides by the render's samples, this is the count itself.
+    {FilmChannel::SampleCount, "sample_count", "Debug Sample Count", "X", "VALUE", SampleCombination::Sum, 0.0f,
+     "Debug: samples the pixel received (fewer where adaptive sampling found it converged)", one_sample},
 }};
 
-// Rows in FilmChannel order; a Mean channel's empty value is 0, what a tile's sums hold for a pixel no sample
+// Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample
 // reached.
 constexpr bool table_is_consistent() {
     for (std::size_t i = 0; i < kChannels.size(); ++i) {
         if (std::size_t(kChannels[i].channel) != i) return false;
-        if (kChannels[i].combination == SampleCombination::Mean && kChannels[i].empty_value != 0.0f) return false;
+        if (kChannels[i].combination != SampleCombination::FirstSample && kChannels[i].empty_value != 0.0f) return false;
     }
     return true;
 }
-static_assert(table_is_consistent(), "film_channels(): rows out of FilmChannel order, or a Mean channel not empty at 0");
+static_assert(table_is_consistent(),
+              "film_channels(): rows out of FilmChannel order, or a Mean or Sum channel not empty at 0");
 
 }  // namespace
 
@@ -105,17 +131,47 @@ void Film::clear(int x0, int y0, int x1, int y1) {
     }
 }
 
-FilmTile::FilmTile(int x0, int y0, int x1, int y1) : x0_(x0), y0_(y0), x1_(x1), y1_(y1) {
+FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates) : x0_(x0), y0_(y0), x1_(x1), y1_(y1) {
     const std::size_t pixels = std::size_t(x1 - x0) * std::size_t(y1 - y0);
     // Sums start at 0; first samples at the empty value, which pixels no camera ray reaches keep (outside a
     // fisheye's circle, for example).
     for (const FilmChannelInfo& info : film_channels())
-        values_[std::size_t(info.channel)].assign(std::size_t(info.component_count()) * pixels,
-                                                  info.combination == SampleCombination::Mean ? 0.0f : info.empty_value);
+        values_[std::size_t(info.channel)].assign(
+            std::size_t(info.component_count()) * pixels,
+            info.combination == SampleCombination::FirstSample ? info.empty_value : 0.0f);
+    counts_.assign(pixels, 0u);
+    if (noise_estimates) odd_radiance_.assign(3 * pixels, 0.0f);
+}
+
+float FilmTile::noise_estimate(int x, int y) const {
+    const std::size_t pixel = index(x, y);
+    const std::uint32_t n = counts_[pixel], odd = n / 2;
+    if (odd_radiance_.empty() || odd == 0) return std::numeric_limits<float>::infinity();
+    const float* sum = values_[std::size_t(FilmChannel::Combined)].data() + 4 * pixel;
+    const float* odd_sum = odd_radiance_.data() + 3 * pixel;
+    // Display blend space: both pixel values as write_to() combines them, from all samples' display parts and from
+    // the odd ones' (a half whose samples all missed the camera has none: its value is its radiance alone).
+    const float* display = display_sums_.empty() ? nullptr : display_sums_.data() + kDisplaySums * pixel;
+    const float* odd_display = odd_display_sums_.empty() ? nullptr : odd_display_sums_.data() + kDisplaySums * pixel;
+    if (display && display[7] == 0.0f) display = nullptr;
+    if (odd_display && odd_display[7] == 0.0f) odd_display = nullptr;
+    float difference = 0.0f, intensity = 0.0f;
+    for (int c = 0; c < 3; ++c) {
+        float mean = sum[c] / float(n), odd_mean = odd_sum[c] / float(odd);
+        if (display) mean += display_part(display, c);
+        if (odd_display) odd_mean += display_part(odd_display, c);
+        difference += std::fabs(mean - odd_mean);
+        intensity += mean;
+    }
+    const float normalize = intensity < 1.0f ? std::sqrt(std::max(intensity, 0.0f)) : intensity;
+    return difference / (0.0001f + normalize);
 }
 
 void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) {
-    const std::size_t pixel = std::size_t(y - y0_) * std::size_t(x1_ - x0_) + std::size_t(x - x0_);
+    const std::size_t pixel = index(x, y);
+    ++counts_[pixel];
+    if (!odd_radiance_.empty() && (sample & 1))
+        for (int c = 0; c < 3; ++c) odd_radiance_[3 * pixel + std::size_t(c)] += record.radiance[std::size_t(c)];
     float values[8];
     for (const FilmChannelInfo& info : film_channels()) {
         const int c = info.component_count();
@@ -128,20 +184,18 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         for (int k = 0; k < c; ++k) out[k] += values[k];
     }
     if (record.display_blend) {
-        if (display_sums_.empty()) display_sums_.assign(kDisplaySums * std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_), 0.0f);
-        float* sums = display_sums_.data() + kDisplaySums * pixel;
-        for (int k = 0; k < 3; ++k) {
-            sums[k] += record.display_radiance[k];
-            sums[4 + k] += record.behind_radiance[k];
+        const std::size_t pixels = std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_);
+        if (display_sums_.empty()) {
+            display_sums_.assign(kDisplaySums * pixels, 0.0f);
+            if (!odd_radiance_.empty()) odd_display_sums_.assign(kDisplaySums * pixels, 0.0f);
         }
-        sums[3] += record.display_transmittance;
-        sums[7] += 1.0f;
+        add_display_parts(display_sums_.data() + kDisplaySums * pixel, record);
+        if (!odd_display_sums_.empty() && (sample & 1))
+            add_display_parts(odd_display_sums_.data() + kDisplaySums * pixel, record);
     }
 }
 
-void FilmTile::write_to(Film& film, int samples, bool transparent_background) const {
-    const float inv = 1.0f / float(samples);
-    const std::size_t tile_width = std::size_t(x1_ - x0_);
+void FilmTile::write_to(Film& film, bool transparent_background) const {
     for (const FilmChannelInfo& info : film_channels()) {
         const std::size_t c = std::size_t(info.component_count());
         const std::vector<float>& values = values_[std::size_t(info.channel)];
@@ -149,28 +203,23 @@ void FilmTile::write_to(Film& film, int samples, bool transparent_background) co
         const bool mean = info.combination == SampleCombination::Mean;
         for (int y = y0_; y < y1_; ++y)
             for (int x = x0_; x < x1_; ++x) {
-                const float* v = values.data() + c * (std::size_t(y - y0_) * tile_width + std::size_t(x - x0_));
+                const std::size_t pixel = index(x, y);
+                const float* v = values.data() + c * pixel;
                 float* out = buffer.data() + c * (std::size_t(y) * film.width + x);
+                // A pixel without samples: its sums are 0, the empty value of a Mean channel.
+                const float inv = counts_[pixel] > 0 ? 1.0f / float(counts_[pixel]) : 0.0f;
                 for (std::size_t k = 0; k < c; ++k) out[k] = mean ? v[k] * inv : v[k];
             }
     }
     if (!display_sums_.empty()) {
-        // SampleRecord: rgb += linear(mean D + mean T display(mean(T L_behind) / mean T)). Where no sample met a
-        // Gaussian (D = 0, T = 1) that is mean L_behind, taken as it is.
+        // SampleRecord: rgb += linear(mean D + mean T display(mean(T L_behind) / mean T)) (display_part).
         FloatBuffer& rgba = film.rgba();
         for (int y = y0_; y < y1_; ++y)
             for (int x = x0_; x < x1_; ++x) {
-                const float* sums = display_sums_.data() + kDisplaySums * (std::size_t(y - y0_) * tile_width + std::size_t(x - x0_));
+                const float* sums = display_sums_.data() + kDisplaySums * index(x, y);
                 if (sums[7] == 0.0f) continue;
                 float* out = rgba.data() + 4 * (std::size_t(y) * film.width + x);
-                const float n = sums[7], t = sums[3] / n;
-                const bool gaussians = sums[3] != n || sums[0] != 0.0f || sums[1] != 0.0f || sums[2] != 0.0f;
-                for (int k = 0; k < 3; ++k) {
-                    const float behind = sums[4 + k] / n;
-                    out[k] += !gaussians  ? behind
-                              : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
-                                         : srgb_to_linear_tabulated(sums[k] / n);
-                }
+                for (int k = 0; k < 3; ++k) out[k] += display_part(sums, k);
             }
     }
     if (transparent_background) return;

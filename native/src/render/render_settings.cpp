@@ -1,6 +1,7 @@
 // RenderSettings (raysplats/render/render_settings.h): validation and the table of setting names.
 #include "raysplats/render/render_settings.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -24,7 +25,36 @@ void RenderSettings::validate() const {
             "gather buffer size must be in 1 .. 128 (got " + std::to_string(gather_buffer_size) + ")");
     require(std::isfinite(filter_width) && filter_width >= 0.01f && filter_width <= 10.0f,
             "filter width must be in 0.01 .. 10 pixels (got " + std::to_string(filter_width) + ")");
+    require(std::isfinite(adaptive_threshold) && adaptive_threshold >= 0.0f && adaptive_threshold <= 1.0f,
+            "adaptive threshold must be in [0, 1] (0: automatic; got " + std::to_string(adaptive_threshold) + ")");
+    require(adaptive_min_samples >= 0 && adaptive_min_samples <= (1 << 20),
+            "adaptive min samples must be in 0 .. 1048576 (0: automatic; got " + std::to_string(adaptive_min_samples) + ")");
+    const bool whole = region_width == 0 || region_height == 0;
+    require(whole || (region_width > 0 && region_height > 0 && region_x >= 0 && region_y >= 0 &&
+                      std::int64_t(region_x) + region_width <= width && std::int64_t(region_y) + region_height <= height),
+            "render region " + std::to_string(region_width) + " x " + std::to_string(region_height) + " at (" +
+                std::to_string(region_x) + ", " + std::to_string(region_y) + ") is not inside the " +
+                std::to_string(width) + " x " + std::to_string(height) + " image");
     require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
+}
+
+AdaptiveSampling adaptive_sampling_of(const RenderSettings& settings) {
+    AdaptiveSampling a;
+    if (!settings.adaptive_sampling) return a;
+    // Cycles' Integrator::get_adaptive_sampling (intern/cycles/scene/integrator.cpp).
+    a.threshold = settings.adaptive_threshold > 0.0f ? settings.adaptive_threshold
+                                                     : std::max(0.001f, 1.0f / float(settings.samples));
+    a.min_samples = settings.adaptive_min_samples > 0
+                        ? settings.adaptive_min_samples
+                        : int(std::ceil(16.0f / std::pow(a.threshold, 0.3f)));
+    a.min_samples = std::max(4, a.min_samples);
+    return a;
+}
+
+PixelRect render_region_of(const RenderSettings& settings) {
+    if (settings.region_width == 0 || settings.region_height == 0) return {0, 0, settings.width, settings.height};
+    return {settings.region_x, settings.region_y, settings.region_x + settings.region_width,
+            settings.region_y + settings.region_height};
 }
 
 const NameTable<Compositing>& compositing_names() {
@@ -111,7 +141,19 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
          {"caustics_refractive", T::Bool, "diffuse paths continue through refraction (Cycles' Caustics)",
           &member<&S::caustics_refractive>, {}},
          {"speculative_ends", T::Bool, "sorted camera rays first traverse up to their neighbours' ends (same image)",
-          &member<&S::speculative_ends>, {}}}};
+          &member<&S::speculative_ends>, {}},
+         {"adaptive_sampling", T::Bool, "pixels stop sampling once their noise is below the threshold (Cycles' Noise Threshold)",
+          &member<&S::adaptive_sampling>, {}},
+         {"adaptive_threshold", T::Real, "noise level at which a pixel stops sampling (0: automatic from samples)",
+          &member<&S::adaptive_threshold>, {}},
+         {"adaptive_min_samples", T::Integer, "samples every pixel gets before it may stop (0: automatic from the threshold)",
+          &member<&S::adaptive_min_samples>, {}},
+         {"region_x", T::Integer, "left edge of the render region, in pixels", &member<&S::region_x>, {}},
+         {"region_y", T::Integer, "top edge of the render region, in pixels from the top", &member<&S::region_y>, {}},
+         {"region_width", T::Integer, "width of the render region in pixels (0: the whole image)",
+          &member<&S::region_width>, {}},
+         {"region_height", T::Integer, "height of the render region in pixels (0: the whole image)",
+          &member<&S::region_height>, {}}}};
     return table;
 }
 

@@ -49,12 +49,54 @@ float known_segment_end(const std::vector<float>& segment_end, int tile_width, i
 // What one tile keeps between sample passes: its sums, where its pixels' last camera segments ended (+inf: escaped
 // or not traced yet) and how many passes it has completed.
 struct TileState {
-    TileState(int x0, int y0, int x1, int y1)
-        : samples(x0, y0, x1, y1), segment_end(std::size_t(x1 - x0) * std::size_t(y1 - y0), kInf) {}
+    TileState(const PixelRect& r, bool noise_estimates)
+        : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates),
+          segment_end(std::size_t(r.width()) * std::size_t(r.height()), kInf) {}
     FilmTile samples;
     std::vector<float> segment_end;
     int samples_done = 0;
 };
+
+// Adaptive sampling's decision after a check (Cycles' film_adaptive_sampling_convergence_check, then its
+// filter_x / filter_y): a pixel still sampling is noisy while its noise estimate is at or above the threshold;
+// converged pixels stay converged. Then every pixel within one pixel (3 x 3) of a noisy one samples on, so that
+// the edges of noisy areas are not left splotchy. Returns whether any pixel samples on.
+bool update_sampling_mask(const PixelRect& region, int image_width, const float threshold,
+                          const std::vector<std::unique_ptr<TileState>>& tiles, std::vector<std::uint8_t>& sampling,
+                          std::vector<std::uint8_t>& noisy) {
+    const std::size_t w = std::size_t(image_width);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t t = r.begin(); t != r.end(); ++t) {
+            const FilmTile& tile = tiles[t]->samples;
+            for (int y = tile.y0(); y < tile.y1(); ++y)
+                for (int x = tile.x0(); x < tile.x1(); ++x) {
+                    const std::size_t p = std::size_t(y) * w + std::size_t(x);
+                    noisy[p] = sampling[p] && !(tile.noise_estimate(x, y) < threshold);
+                }
+        }
+    });
+    // The 3 x 3 box as two passes, along rows into `sampling`, then along columns back into `noisy`.
+    tbb::parallel_for(tbb::blocked_range<int>(region.y0, region.y1), [&](const tbb::blocked_range<int>& r) {
+        for (int y = r.begin(); y != r.end(); ++y)
+            for (int x = region.x0; x < region.x1; ++x) {
+                const std::size_t p = std::size_t(y) * w + std::size_t(x);
+                sampling[p] = noisy[p] || (x > region.x0 && noisy[p - 1]) || (x + 1 < region.x1 && noisy[p + 1]);
+            }
+    });
+    std::atomic<bool> any{false};
+    tbb::parallel_for(tbb::blocked_range<int>(region.y0, region.y1), [&](const tbb::blocked_range<int>& r) {
+        bool found = false;
+        for (int y = r.begin(); y != r.end(); ++y)
+            for (int x = region.x0; x < region.x1; ++x) {
+                const std::size_t p = std::size_t(y) * w + std::size_t(x);
+                noisy[p] = sampling[p] || (y > region.y0 && sampling[p - w]) || (y + 1 < region.y1 && sampling[p + w]);
+                found |= noisy[p] != 0;
+            }
+        if (found) any = true;
+    });
+    sampling.swap(noisy);
+    return any.load();
+}
 
 }  // namespace
 
@@ -69,8 +111,29 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     Film film;
     film.allocate(settings.width, settings.height);  // every pixel is written at the end (or by a snapshot)
     const int w = settings.width, h = settings.height, ts = settings.tile_size;
-    const int tiles_x = (w + ts - 1) / ts, tiles_y = (h + ts - 1) / ts;
+    // Tiles cover the region (the whole image without one) from its corner; the rest of the film stays empty.
+    const PixelRect region = render_region_of(settings);
+    const int tiles_x = (region.width() + ts - 1) / ts, tiles_y = (region.height() + ts - 1) / ts;
     const int tile_count = tiles_x * tiles_y;
+    auto tile_rect = [&](int t) {
+        const int x0 = region.x0 + (t % tiles_x) * ts, y0 = region.y0 + (t / tiles_x) * ts;
+        return PixelRect{x0, y0, std::min(x0 + ts, region.x1), std::min(y0 + ts, region.y1)};
+    };
+    if (region.width() < w || region.height() < h) {
+        film.clear(0, 0, w, region.y0);
+        film.clear(0, region.y1, w, h);
+        film.clear(0, region.y0, region.x0, region.y1);
+        film.clear(region.x1, region.y0, w, region.y1);
+    }
+    // Adaptive sampling: which pixels still take samples (1), over the whole image's pixels; Cycles' threshold
+    // factor 5 ("makes the threshold more similar to what it was before", integrator.cpp) keeps its settings' scale.
+    const AdaptiveSampling adaptive = adaptive_sampling_of(settings);
+    const float noise_threshold = 5.0f * adaptive.threshold;
+    std::vector<std::uint8_t> sampling, noisy;
+    if (adaptive.on()) {
+        sampling.assign(std::size_t(w) * std::size_t(h), 1);
+        noisy.assign(sampling.size(), 0);
+    }
     const ShadowVisibility shadow(impl, settings);
     const GaussianSegmentTracer tracer(impl, settings, shadow);
     const PathIntegrator integrator(impl, settings, tracer, shadow);
@@ -82,7 +145,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     std::atomic<long long> tile_passes_done{0};
     const double tile_passes = double(tile_count) * double(settings.samples);
     std::atomic<bool> cancelled{false};
-    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0}, group_candidates{0};
+    std::atomic<std::uint64_t> traced{0}, gaussian_hits{0}, candidates{0}, group_candidates{0}, camera_samples{0};
     std::mutex progress_mutex;
     auto is_cancelled = [&] {
         if (cancelled.load(std::memory_order_relaxed)) return true;
@@ -95,17 +158,20 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     // Created by the thread that renders the tile's first pass (parallel first touch of its sums).
     std::vector<std::unique_ptr<TileState>> tiles(static_cast<std::size_t>(tile_count));
 
-    // Sample `sample` of every pixel of a tile. Camera rays go to Embree as 4 x 4 packets (neighbouring pixels,
-    // coherent).
-    auto render_tile_sample = [&](TileState& tile, int sample, Counters& counters) {
+    // The next sample of every pixel of a tile that still takes samples (each pixel's own next: its sample count,
+    // which is the pass without adaptive sampling). Camera rays go to Embree as 4 x 4 packets (neighbouring pixels,
+    // coherent). Returns the samples taken.
+    auto render_tile_sample = [&](TileState& tile, Counters& counters) {
         const int x0 = tile.samples.x0(), y0 = tile.samples.y0(), x1 = tile.samples.x1(), y1 = tile.samples.y1();
         const int tw = x1 - x0;
+        std::uint64_t taken = 0;
         for (int by = y0; by < y1; by += 4) {
             for (int bx = x0; bx < x1; bx += 4) {
                 Ray rays[16];
                 bool active[16];
                 Sampler rngs[16];  // seeded below for the packet's pixels (the others are never used)
                 Segment segs[16];
+                int lane_sample[16];
                 bool any = false;
                 for (int l = 0; l < 16; ++l) {
                     const int x = bx + (l & 3), y = by + (l >> 2);
@@ -113,6 +179,8 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     rays[l] = Ray{glm::vec3(0.0f), glm::vec3(0, 0, -1), 0.0f, 0.0f};
                     if (x >= x1 || y >= y1) continue;
                     const std::uint64_t pixel = std::uint64_t(y) * w + x;
+                    if (!sampling.empty() && !sampling[pixel]) continue;
+                    const int sample = lane_sample[l] = tile.samples.sample_count(x, y);
                     rngs[l] = Sampler(settings.seed, pixel, std::uint32_t(sample));
                     float jx = 0.5f, jy = 0.5f;
                     if (settings.jitter) {
@@ -120,7 +188,11 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                         jy = pixel_filter.position(rngs[l].next());
                     }
                     const CameraRay cr = camera_rays(x + jx, y + jy);
-                    if (!cr.valid) continue;
+                    if (!cr.valid) {
+                        tile.samples.add_empty_sample(x, y);
+                        ++taken;
+                        continue;
+                    }
                     rays[l] = Ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
                                   glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
                     active[l] = any = true;
@@ -132,7 +204,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     ends[l] = kInf;
                     if (!active[l] || !speculate) continue;
                     const float known =
-                        known_segment_end(tile.segment_end, tw, x - x0, y - y0, bx - x0, by - y0, sample);
+                        known_segment_end(tile.segment_end, tw, x - x0, y - y0, bx - x0, by - y0, lane_sample[l]);
                     // (Not before the ray's own start: neighbours' clip starts differ.)
                     if (known * kSpeculativeMargin > rays[l].tmin) ends[l] = known * kSpeculativeMargin;
                 }
@@ -141,23 +213,36 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     if (active[l])
                         tile.segment_end[std::size_t(by + (l >> 2) - y0) * tw + (bx + (l & 3) - x0)] = segs[l].end;
                 for (int l = 0; l < 16; ++l)
-                    if (active[l])
-                        tile.samples.add_sample(bx + (l & 3), by + (l >> 2), sample,
+                    if (active[l]) {
+                        tile.samples.add_sample(bx + (l & 3), by + (l >> 2), lane_sample[l],
                                                 integrator.path(rays[l], rngs[l], counters, &segs[l]));
+                        ++taken;
+                    }
             }
         }
+        return taken;
+    };
+
+    // Whether any pixel of the tile still takes samples.
+    auto tile_samples = [&](const TileState& tile) {
+        if (sampling.empty()) return true;
+        for (int y = tile.samples.y0(); y < tile.samples.y1(); ++y)
+            for (int x = tile.samples.x0(); x < tile.samples.x1(); ++x)
+                if (sampling[std::size_t(y) * w + x]) return true;
+        return false;
     };
 
     // Every tile as the mean of the passes it completed; tiles a cancel left without any stay empty.
     auto write_film = [&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, tile_count, 1), [&](const tbb::blocked_range<int>& range) {
             for (int t = range.begin(); t != range.end(); ++t) {
-                const int x0 = (t % tiles_x) * ts, y0 = (t / tiles_x) * ts;
                 const TileState* tile = tiles[std::size_t(t)].get();
-                if (tile && tile->samples_done > 0)
-                    tile->samples.write_to(film, tile->samples_done, settings.transparent_background);
-                else
-                    film.clear(x0, y0, std::min(x0 + ts, w), std::min(y0 + ts, h));
+                if (tile && tile->samples_done > 0) {
+                    tile->samples.write_to(film, settings.transparent_background);
+                } else {
+                    const PixelRect r = tile_rect(t);
+                    film.clear(r.x0, r.y0, r.x1, r.y1);
+                }
             }
         });
     };
@@ -165,6 +250,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     // Sample passes: every tile renders sample k before any renders k + 1, so that after each pass the film is a
     // whole image (progressive display; a cancelled render keeps the passes done). A pixel's samples, their seeds and
     // the order of its sums are those of a tile-by-tile loop, so the image is the same bit for bit.
+    // With adaptive sampling, pixels drop out at the checks; once none samples on, the render ends early.
     int samples_done = 0;
     for (int sample = 0; sample < settings.samples; ++sample) {
         tbb::parallel_for(tbb::blocked_range<int>(0, tile_count, 1), [&](const tbb::blocked_range<int>& range) {
@@ -172,12 +258,9 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                 // Polled per tile and pass (at most 32 x 32 samples): a cancelled tile keeps its completed passes.
                 if (is_cancelled()) continue;
                 std::unique_ptr<TileState>& tile = tiles[std::size_t(t)];
-                if (!tile) {
-                    const int x0 = (t % tiles_x) * ts, y0 = (t / tiles_x) * ts;
-                    tile = std::make_unique<TileState>(x0, y0, std::min(x0 + ts, w), std::min(y0 + ts, h));
-                }
+                if (!tile) tile = std::make_unique<TileState>(tile_rect(t), adaptive.on());
                 Counters counters;
-                render_tile_sample(*tile, sample, counters);
+                if (tile_samples(*tile)) camera_samples += render_tile_sample(*tile, counters);
                 tile->samples_done = sample + 1;
                 traced += counters.traced;
                 gaussian_hits += counters.gaussian_hits;
@@ -195,6 +278,12 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
         // A pass counts when every tile finished it, even if a cancel came after the last one did.
         if (tile_passes_done.load() < (long long)(sample + 1) * tile_count) break;
         samples_done = sample + 1;
+        // Cycles checks after every kAdaptiveStep samples once the minimum is reached (AdaptiveSampling::need_filter).
+        bool converged = false;
+        if (adaptive.on() && samples_done % kAdaptiveStep == 0 && samples_done >= adaptive.min_samples &&
+            samples_done < settings.samples)
+            converged = !update_sampling_mask(region, w, noise_threshold, tiles, sampling, noisy);
+        if (converged) break;
         if (pass_done && samples_done < settings.samples) {
             write_film();
             film.stats.samples = samples_done;
@@ -205,7 +294,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
 
     film.stats.cancelled = cancelled.load();
     film.stats.samples = samples_done;
-    film.stats.camera_rays = std::uint64_t(w) * h * settings.samples;
+    film.stats.camera_rays = camera_samples.load();
     film.stats.traced_rays = traced.load();
     film.stats.gaussian_hits = gaussian_hits.load();
     film.stats.gaussian_candidates = candidates.load();

@@ -43,13 +43,14 @@ struct SampleRecord {
     float gaussian_count = 0.0f;
 };
 
-enum class FilmChannel : std::uint8_t { Combined, Depth, Normal, Alpha, GaussianCount };
-constexpr std::size_t kFilmChannelCount = 5;
+enum class FilmChannel : std::uint8_t { Combined, Depth, Normal, Alpha, GaussianCount, SampleCount };
+constexpr std::size_t kFilmChannelCount = 6;
 
 // How a channel combines the samples of a pixel.
 enum class SampleCombination : std::uint8_t {
     Mean,         // average over every sample (radiance, coverage)
     FirstSample,  // the pixel's first sample (depth and normal: an average of two depths is no surface's depth)
+    Sum,          // the sum over the samples, not divided (counts: the samples a pixel received)
 };
 
 struct FilmChannelInfo {
@@ -73,13 +74,16 @@ const FilmChannelInfo& film_channel_info(FilmChannel channel);
 
 struct RenderStats {
     double render_seconds = 0.0;
-    std::uint64_t camera_rays = 0;       // primary rays (one per pixel sample)
+    // Camera samples taken (one per pixel and sample, each a primary ray unless the camera has none there, outside a
+    // fisheye's circle). Divided by the rendered pixels: the mean samples per pixel, which adaptive sampling lowers.
+    std::uint64_t camera_rays = 0;
     std::uint64_t traced_rays = 0;       // every rtcIntersect1/rtcOccluded1 call, including re-traces
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
     std::uint64_t gaussian_candidates = 0;  // Gaussian intersection tests run by the traversals
     std::uint64_t gaussian_group_candidates = 0;  // the groups of Gaussians (Embree primitives) they belong to
     // Samples per pixel the film holds: the settings' samples for a finished render; for a cancelled one the
     // sample passes every tile completed (a tile may hold one more, see render()); for a snapshot the passes done.
+    // With adaptive sampling, the most any pixel holds (the sample_count channel has each pixel's).
     int samples = 0;
     bool cancelled = false;
 };
@@ -106,6 +110,8 @@ struct Film {
     const FloatBuffer& alpha() const { return (*this)[FilmChannel::Alpha]; }
     FloatBuffer& gaussian_count() { return (*this)[FilmChannel::GaussianCount]; }
     const FloatBuffer& gaussian_count() const { return (*this)[FilmChannel::GaussianCount]; }
+    FloatBuffer& sample_count() { return (*this)[FilmChannel::SampleCount]; }
+    const FloatBuffer& sample_count() const { return (*this)[FilmChannel::SampleCount]; }
 
     // An empty film: every channel at its empty value.
     void resize(int width, int height);
@@ -124,17 +130,36 @@ struct Film {
 };
 
 // One tile's samples, combined channel by channel (SampleCombination) and then written into the film. The
-// renderer keeps one per tile so that tiles run in parallel without sharing sums.
+// renderer keeps one per tile so that tiles run in parallel without sharing sums. Each pixel counts its own
+// samples (adaptive sampling gives pixels different counts).
 class FilmTile {
 public:
-    // Pixels [x0, x1) x [y0, y1) of the film.
-    FilmTile(int x0, int y0, int x1, int y1);
-    // Sample number `sample` (0, 1, ...) of film pixel (x, y).
+    // Pixels [x0, x1) x [y0, y1) of the film. With `noise_estimates`, the tile also sums each pixel's odd samples'
+    // radiance (Cycles' adaptive auxiliary buffer), for noise_estimate().
+    FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false);
+    // Sample number `sample` of film pixel (x, y): the pixel's samples so far, sample_count(x, y).
     void add_sample(int x, int y, int sample, const SampleRecord& record);
-    // Writes the tile's pixels into `film` as the mean of their first `samples` samples (the sums hold exactly
-    // that many). Combined's alpha is coverage with a transparent background
-    // (RenderSettings::transparent_background) and 1 otherwise.
-    void write_to(Film& film, int samples, bool transparent_background) const;
+    // A sample of film pixel (x, y) whose camera ray does not exist (jittered outside a fisheye's circle): it counts,
+    // contributing nothing, so that the pixel's mean fades at the circle's rim.
+    void add_empty_sample(int x, int y) { ++counts_[index(x, y)]; }
+    // Samples film pixel (x, y) has received.
+    int sample_count(int x, int y) const { return int(counts_[index(x, y)]); }
+    // Cycles' per-pixel noise estimate (film_adaptive_sampling_convergence_check; Dammertz et al. 2010, "A
+    // hierarchical automatic stopping condition for Monte Carlo global illumination", section 2.1): with I the
+    // pixel's linear RGB from its n samples and A that from its odd-numbered ones, each combined as write_to()
+    // combines them (the mean radiance; in display blend space plus linear(mean D + mean T display(...)) of the
+    // samples' display parts, see SampleRecord),
+    //   error = (|I.r - A.r| + |I.g - A.g| + |I.b - A.b|) / (0.0001 + N),  N = sqrt(s) if s < 1 else s,
+    //   s = I.r + I.g + I.b.
+    // |I - A| is half the difference of the even and odd halves' means (to first order where the display
+    // combination bends them), so about the standard error of I: the
+    // estimate falls as 1 / sqrt(n). Relative to sqrt(s) in the dark (where the eye sees noise more), to s where
+    // bright. Needs `noise_estimates` and n >= 2.
+    float noise_estimate(int x, int y) const;
+    // Writes the tile's pixels into `film`, each as the mean of its own samples (a pixel without any: the empty
+    // values). Combined's alpha is coverage with a transparent background (RenderSettings::transparent_background)
+    // and 1 otherwise.
+    void write_to(Film& film, bool transparent_background) const;
     // Pixels [x0, x1) x [y0, y1) of the film.
     int x0() const { return x0_; }
     int y0() const { return y0_; }
@@ -142,11 +167,16 @@ public:
     int y1() const { return y1_; }
 
 private:
+    std::size_t index(int x, int y) const { return std::size_t(y - y0_) * std::size_t(x1_ - x0_) + std::size_t(x - x0_); }
     int x0_, y0_, x1_, y1_;
-    std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean) or first samples (FirstSample)
+    std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean, Sum) or first samples (FirstSample)
+    std::vector<std::uint32_t> counts_;  // samples per pixel
+    std::vector<float> odd_radiance_;    // RGB sums of the odd-numbered samples (noise_estimates only)
     // Display blend space: per pixel the sums of D (3), T (1) and T L_behind (3) and the count of samples that had
-    // them (SampleRecord); empty until a sample has them.
+    // them (SampleRecord); empty until a sample has them. odd_display_sums_: the same over the odd-numbered samples
+    // (noise_estimates only), so that noise_estimate() compares pixel values combined as write_to() combines them.
     std::vector<float> display_sums_;
+    std::vector<float> odd_display_sums_;
 };
 
 }  // namespace raysplats

@@ -77,9 +77,52 @@ struct RenderSettings {
     // same Gaussians composited in the same order); off is for tests and measurements.
     bool speculative_ends = true;
 
+    // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
+    // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The
+    // estimate is Cycles' (film.h, FilmTile::noise_estimate), checked every kAdaptiveStep samples once a pixel has
+    // the minimum; a pixel next to a noisy one keeps sampling. Each pixel's image is then its render at its own
+    // sample count (the same seeds). Off renders every pixel `samples` times, bit for bit as before.
+    bool adaptive_sampling = false;
+    // Noise level at which a pixel stops, in Cycles' units (typical 0.1 .. 0.001); 0: automatic,
+    // max(0.001, 1 / samples) (Cycles' rule).
+    float adaptive_threshold = 0.01f;
+    // Samples every pixel gets before it may stop; 0: automatic, ceil(16 / threshold^0.3) (Cycles' rule: 0.1 -> 32,
+    // 0.01 -> 64, 0.001 -> 128); at least 4 either way.
+    int adaptive_min_samples = 0;
+
+    // The render region (Blender's Render Region / border): only pixels [region_x, region_x + region_width) x
+    // [region_y, region_y + region_height) are rendered, in film pixels (row 0 at the top); the film keeps the full
+    // image size and the pixels outside hold the channels' empty values. A pixel inside is the same as in the whole
+    // image's render (its samples' seeds depend on its place in the whole image). Width or height 0: the whole image.
+    int region_x = 0;
+    int region_y = 0;
+    int region_width = 0;
+    int region_height = 0;
+
     // Throws InvalidArgument with the offending setting.
     void validate() const;
 };
+
+// Samples between two noise checks of adaptive sampling (Cycles' adaptive_step); even, so that the odd samples are
+// half of a pixel's samples at each check.
+constexpr int kAdaptiveStep = 16;
+
+// The threshold and minimum sample count adaptive sampling uses (the automatic rules applied); threshold 0 when
+// settings.adaptive_sampling is off. The threshold is in Cycles' units before its internal factor 5.
+struct AdaptiveSampling {
+    float threshold = 0.0f;
+    int min_samples = 0;
+    bool on() const { return threshold > 0.0f; }
+};
+AdaptiveSampling adaptive_sampling_of(const RenderSettings& settings);
+
+// The rendered rectangle [x0, x1) x [y0, y1) of the film: the region, or the whole image.
+struct PixelRect {
+    int x0, y0, x1, y1;
+    int width() const { return x1 - x0; }
+    int height() const { return y1 - y0; }
+};
+PixelRect render_region_of(const RenderSettings& settings);
 
 // The names of the enums above and of GaussianMode ("SORTED", "FLAT", ...).
 const NameTable<Compositing>& compositing_names();

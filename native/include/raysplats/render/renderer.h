@@ -23,6 +23,9 @@ using SamplePassCallback = std::function<void(const Film& film_so_far)>;
 
 // Renders `scene` (building its BVH first if needed) in sample passes: every tile renders sample k before any
 // renders k + 1. The image does not depend on that order (nor on threads): each pixel sample has its own seed.
+// Only the render region's tiles are rendered (RenderSettings::region_*). With adaptive sampling, pixels whose
+// noise estimate fell below the threshold take no further samples (checked between passes, so the image is still
+// independent of threads), and the render ends early once no pixel samples on.
 // `cancel` is polled per tile and pass (at most tile_size^2 samples): once it is set, render returns within a
 // fraction of a second with stats.cancelled = true and every tile holding the mean of the passes it completed (the
 // tiles the interrupted pass reached have one sample more; tiles without any are empty; stats.samples is the passes
