@@ -109,6 +109,9 @@ def render_rgba(scene, engine, path, samples):
     if engine == "RAYSPLATS":
         scene.raysplats.samples = samples
         scene.raysplats.seed = 1
+        # EEVEE composites its hashed transparency in linear light: the reference is the linear blend, not the
+        # splat viewers' display blend (the default since issue 15).
+        scene.raysplats.blend_space = "LINEAR"
     else:
         scene.eevee.taa_render_samples = samples
     scene.render.image_settings.file_format = "OPEN_EXR"
