@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 
 from . import errors, gaussian_mesh, native, native_splats
-from .io_import import add_gaussian_object, remove_gaussian_object
+from .io_import import add_gaussian_object, link_as_only_selected, remove_gaussian_object
 
 # On a region's polygon object: the name of the compact object it was taken from (where Merge Back returns it).
 REGION_OF_PROPERTY = "raysplats_region_of"
@@ -43,12 +43,7 @@ def add_compact_object(context, name, cloud, up_axis, source_file=""):
             # Blender draws a mesh's loose vertices only in Edit Mode: the bounds show where the scene is in Solid
             # view (Rendered view shows the splats; Edit Mode shows every point, to select a region).
             obj.display_type = "BOUNDS"
-        collection = context.collection if getattr(context, "collection", None) else context.scene.collection
-        collection.objects.link(obj)
-        for other in context.view_layer.objects:
-            other.select_set(False)
-        obj.select_set(True)
-        context.view_layer.objects.active = obj
+        link_as_only_selected(context, obj)
     except BaseException:
         if obj is not None:
             bpy.data.objects.remove(obj)

@@ -219,12 +219,7 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
         settings.sh_degree = sh_degree
         settings.source_file = source_file
         settings.up_axis = up_axis
-        collection = context.collection if getattr(context, "collection", None) else context.scene.collection
-        collection.objects.link(obj)
-        for other in context.view_layer.objects:
-            other.select_set(False)
-        obj.select_set(True)
-        context.view_layer.objects.active = obj
+        link_as_only_selected(context, obj)
     except BaseException:
         # Whatever step failed, the data-blocks made so far go: removing the object unlinks it everywhere.
         if obj is not None:
@@ -232,6 +227,16 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
         bpy.data.meshes.remove(mesh)
         raise
     return obj, warnings
+
+
+def link_as_only_selected(context, obj):
+    """Links a new object to the active collection (the scene's, without one) as the only selected, active object."""
+    collection = context.collection if getattr(context, "collection", None) else context.scene.collection
+    collection.objects.link(obj)
+    for other in context.view_layer.objects:
+        other.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
 
 
 def remove_gaussian_object(obj):
