@@ -235,6 +235,8 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
 void register_mesh_export(py::module_& m);
 // splat_tools_bindings.cpp
 void register_splat_tools(py::module_& m);
+// edit_mesh_bindings.cpp
+void register_edit_mesh(py::module_& m);
 
 PYBIND11_MODULE(_native, m) {
     m.doc() = "RaySplats native core: splat file I/O, the polygon bridge and mesh export (see DESIGN.md).";
@@ -311,4 +313,5 @@ PYBIND11_MODULE(_native, m) {
     register_render_bindings(m);
     register_mesh_export(m);
     register_splat_tools(m);
+    register_edit_mesh(m);
 }
