@@ -97,7 +97,7 @@ py::dict gaussians_to_polygons(const FloatArray& positions, const FloatArray& ro
     d["corner_edges"] = to_numpy(std::move(p.corner_edges), {corners});
     d["thickness"] = to_numpy(std::move(p.thickness), {n});
     d["sh_local"] = to_numpy(std::move(p.sh_local), {n, py::ssize_t(cloud.coeffs_per_channel()), 3});
-    d["corner_colors"] = to_numpy(std::move(p.corner_colors), {corners, 4});
+    d["corner_colors"] = to_numpy(std::move(p.corner_colors), {corners, 4});  // uint8: a byte colour attribute's
     d["corner_uvs"] = to_numpy(std::move(p.corner_uvs), {corners, 2});
     d["polygon_radius"] = to_numpy(std::move(p.polygon_radius), {n});
     d["opacity"] = to_numpy(std::move(p.opacity), {n});

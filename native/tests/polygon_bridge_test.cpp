@@ -125,9 +125,10 @@ TEST(PolygonBridge, PolygonVerticesLieOnTheirVisibleRadiusEllipse) {
             const float* uv = &p.corner_uvs[2 * (8 * i + k)];
             EXPECT_NEAR(std::hypot(uv[0], uv[1]), rho_i, 1e-6);
             EXPECT_NEAR(std::atan2(uv[1], uv[0]), std::remainder(2 * M_PI * k / 8, 2 * M_PI), 1e-6);
-            const float alpha = p.corner_colors[4 * (8 * i + k) + 3];
-            EXPECT_EQ(alpha, c.opacities[i]);
-            const double rim = alpha * std::exp(-0.5 * (double(uv[0]) * uv[0] + double(uv[1]) * uv[1]));
+            // (The colour's alpha is a byte: the opacity to 1/510.)
+            const double alpha = p.corner_colors[4 * (8 * i + k) + 3] / 255.0;
+            EXPECT_NEAR(alpha, c.opacities[i], 0.5 / 255 + 1e-9);
+            const double rim = c.opacities[i] * std::exp(-0.5 * (double(uv[0]) * uv[0] + double(uv[1]) * uv[1]));
             EXPECT_NEAR(rim, std::max(1.0 / 255, c.opacities[i] * std::exp(-4.5)), 1e-8);
         }
     }
@@ -156,6 +157,28 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
             for (int a = 0; a < 3; ++a) EXPECT_NEAR(r.positions[3 * i + a], c.positions[3 * i + a], 1e-6);
         }
     }
+}
+
+// Imports store no thickness (issue 17): recovery takes each face's from its rest scales, so an edited face (here every
+// face, moved) comes back exactly as with the thickness stored; without rest scales either, the polygon is flat.
+TEST(PolygonBridge, RecoveryWithoutThicknessTakesItFromTheRestScales) {
+    GaussianCloud c = random_cloud(100, 0, 77);
+    PolygonSettings settings{4, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    for (float& v : p.vertex_positions) v += 0.25f;
+    SplatFaceAttributesView attr = attributes_view(p);
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    const GaussianCloud stored = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+    EXPECT_EQ(stats.recovered, 100u);
+    attr.thickness = nullptr;
+    const GaussianCloud recomputed = recover_gaussians_from_polygons(mesh_view(p), attr, options);
+    EXPECT_EQ(recomputed.scales, stored.scales);
+    EXPECT_EQ(recomputed.rotations, stored.rotations);
+    attr.rest_scales = nullptr;
+    const GaussianCloud flat = recover_gaussians_from_polygons(mesh_view(p), attr, options);
+    EXPECT_NE(flat.scales, stored.scales);
 }
 
 // The core property of DESIGN §5: an affine image of the polygon is the polygon of the affinely transformed
@@ -338,7 +361,8 @@ TEST(PolygonBridge, InvisibleGaussiansGetNoFaceAndAreCounted) {
         for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_centers[3 * f + k], c.positions[3 * i + k]);
         for (int k = 0; k < 4; ++k) EXPECT_EQ(p.rest_rotations[4 * f + k], c.rotations[4 * i + k]);
         for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_scales[3 * f + k], c.scales[3 * i + k]);
-        EXPECT_EQ(p.corner_colors[4 * 6 * f + 3], c.opacities[i]);
+        EXPECT_EQ(p.corner_colors[4 * 6 * f + 3], std::uint8_t(c.opacities[i] * 255.0 + 0.5));
+        EXPECT_EQ(p.thickness[f], gaussian_thickness(&c.scales[3 * i]));
         // The face's polygon is the one gaussian_polygon() makes at rho_i, bit for bit.
         float polygon[3 * 6];
         gaussian_polygon(&c.positions[3 * i], &c.rotations[4 * i], &c.scales[3 * i], {6, p.polygon_radius[f]}, polygon);
