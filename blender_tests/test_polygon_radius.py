@@ -69,7 +69,9 @@ class PolygonRadius(unittest.TestCase):
         colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
         mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", colors)
         alpha = colors.reshape(-1, K, 4)[:, :, 3].astype(np.float64)
-        rim = alpha * np.exp(-0.5 * uv_radius ** 2)
+        # (The colour is a byte colour attribute: its alpha is the opacity to half a byte step.)
+        np.testing.assert_allclose(alpha, np.repeat(cloud["opacities"][:, None], K, axis=1), atol=0.5 / 255 + 1e-6)
+        rim = face_values(mesh, gaussian_mesh.ATTR_OPACITY)[:, None] * np.exp(-0.5 * uv_radius ** 2)
         np.testing.assert_allclose(rim[expected < 3.0], 1.0 / 255.0, rtol=1e-5)
         self.assertTrue(np.all(rim >= (1.0 / 255.0) * (1 - 1e-5)))
 

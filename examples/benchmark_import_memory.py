@@ -82,7 +82,7 @@ os.remove(blend)
 
 print(f"\nRaySplats import memory: {os.path.basename(args.file)}, {count:,} Gaussians as "
       f"{obj.raysplats.vertices_per_polygon}-gons, Blender {bpy.app.version_string} "
-      f"({'PyPI bpy' if bpy.app.binary_path == '' else bpy.app.binary_path}), import {seconds:.1f} s")
+      f"({bpy.app.binary_path or 'PyPI bpy'}), import {seconds:.1f} s")
 if not peak_reset:
     print("  (VmHWM could not be reset: the peaks below are the process's since it started)")
 print(f"  empty Blender (add-on, core)  {mb(empty)}")
@@ -99,4 +99,9 @@ for name, (domain, size) in sorted(sizes.items(), key=lambda item: -item[1][1]):
 print(f"    {'total':<22} {'':<7} {mb(total)}   {total / count:6.1f} B/Gaussian")
 print(f"  .blend {mb(blend_size)} / .ply {mb(ply_size)} = {blend_size / ply_size:.2f}x")
 print(f"  targets: <= 700 B/Gaussian above empty (peak during import: {(import_peak - empty) / count:.0f}), "
-      f".blend <= 5x the .ply ({blend_size / ply_size:.2f}x)")
+      f".blend <= 5x the .ply ({blend_size / ply_size:.2f}x)", flush=True)
+raysplats.unregister()
+if not os.path.basename(bpy.app.binary_path).startswith("blender"):
+    # Blender as a Python module (PyPI bpy) can hang in its exit handlers after a big scene; nothing is left to do.
+    sys.stdout.flush()
+    os._exit(0)
