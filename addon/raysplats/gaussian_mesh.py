@@ -15,7 +15,9 @@ ATTR_OPACITY = "gs_opacity"
 # scales where the attribute is missing.
 ATTR_THICKNESS = "gs_thickness"
 # rho_i, the Mahalanobis radius of the face's polygon: min(rho, sqrt(2 ln(255 a))), where the Gaussian is visible
-# (DESIGN §5). Recovery divides by it; faces without it (older files, faces the user adds: 0) use the object's rho.
+# (DESIGN §5). Recovery divides by it; faces without it (faces the user adds: 0) use the object's rho. Imports since
+# issue 17 do not write it: the UV map holds it (the corner at angle 0 is (rho_i, 0)), and face_attributes reads it
+# from there (older files with the attribute keep using it).
 ATTR_RADIUS = "gs_radius"
 ATTR_SH_PREFIX = "gs_sh_"
 # The Gaussian each face was made from; lets unedited faces export bit-exactly (see polygon_bridge.h).
@@ -93,8 +95,10 @@ def fill_mesh(mesh, polygons):
     # would start from (all selected); without them nothing is (issue 17: 1 byte per vertex, edge and face).
     remove_selection_layers(mesh)
 
+    # (No gs_thickness: recovery computes each face's thickness from its rest scales, DESIGN §5.)
+    polygons.pop("thickness", None)
     _write_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", take("opacity"))
-    _write_attribute(mesh, ATTR_RADIUS, "FLOAT", "FACE", take("polygon_radius"))
+    polygons.pop("polygon_radius")  # (no gs_radius: the UV map holds it, see ATTR_RADIUS)
     sh_local = take("sh_local")
     for k in range(sh_local.shape[1]):
         _write_attribute(mesh, sh_attribute_name(k), "FLOAT_VECTOR", "FACE", sh_local[:, k, :])
@@ -102,8 +106,6 @@ def fill_mesh(mesh, polygons):
     _write_attribute(mesh, ATTR_REST_CENTER, "FLOAT_VECTOR", "FACE", take("rest_centers"))
     _write_attribute(mesh, ATTR_REST_ROTATION, "FLOAT_COLOR", "FACE", take("rest_rotations"))
     _write_attribute(mesh, ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", take("rest_scales"))
-    # (No gs_thickness: recovery computes each face's thickness from its rest scales, DESIGN §5.)
-    polygons.pop("thickness", None)
 
     write_corner_colors(mesh, take("corner_colors"))
     uv_layer = mesh.uv_layers.new(name=UV_MAP)
@@ -151,8 +153,8 @@ def _contiguous(starts, counts):
 
 
 def face_attributes(mesh, sh_degree, reuse=None):
-    """The stored per-face Gaussian attributes (None where a modifier or edit removed them). `reuse`: an earlier
-    result whose arrays may be overwritten."""
+    """The stored per-face Gaussian attributes (None where a modifier or edit removed them; polygon_radius from the UV
+    map where gs_radius is missing). `reuse`: an earlier result whose arrays may be overwritten."""
     reuse = reuse or {}
     faces = len(mesh.polygons)
     coeffs = (sh_degree + 1) ** 2
@@ -167,21 +169,21 @@ def face_attributes(mesh, sh_degree, reuse=None):
                                  ("rest_rotations", ATTR_REST_ROTATION, "FLOAT_COLOR"),
                                  ("rest_scales", ATTR_REST_SCALE, "FLOAT_VECTOR")):
         attributes[key] = read_attribute(mesh, name, data_type, "FACE", faces, reuse.get(key))
-    attributes["reflected"] = reflected_faces(mesh)
-    return attributes
-
-
-def reflected_faces(mesh):
-    """1.0 for each face whose corners a reflection reversed (a Mirror modifier, an applied negative scale), else 0.0,
-    from the winding of the splat UVs (which run counter-clockwise on import); None without the UV map. Recovery
-    reflects those faces' view-dependent colour (polygon_bridge.h)."""
-    uvs = read_uv_map(mesh, UV_MAP) if len(mesh.polygons) else None
+    # From the splat UVs (which run counter-clockwise on import): "reflected", 1.0 for each face whose corners a
+    # reflection reversed (a Mirror modifier, an applied negative scale), whose view-dependent colour recovery
+    # reflects (polygon_bridge.h); and each face's rho_i where the mesh has no gs_radius.
+    uvs = read_uv_map(mesh, UV_MAP) if faces else None
     if uvs is None:
-        return None
-    starts = np.empty(len(mesh.polygons), dtype=np.int32)
-    counts = np.empty(len(mesh.polygons), dtype=np.int32)
-    read_face_corners(mesh, sizes=counts, starts=starts)
-    return native.core().faces_with_reversed_uvs(uvs, starts, counts)
+        attributes["reflected"] = None
+    else:
+        starts = np.empty(faces, dtype=np.int32)
+        counts = np.empty(faces, dtype=np.int32)
+        read_face_corners(mesh, sizes=counts, starts=starts)
+        attributes["reflected"] = native.core().faces_with_reversed_uvs(uvs, starts, counts)
+        from_uvs = native.core().polygon_radius_from_uvs(uvs, starts, counts)
+        stored = attributes["polygon_radius"]  # (a join with an older object: 0 on the faces that came without it)
+        attributes["polygon_radius"] = from_uvs if stored is None else np.where(stored > 0, stored, from_uvs)
+    return attributes
 
 
 def is_gaussian_object(obj):

@@ -77,8 +77,9 @@ def memory_size_text(n):
 REPRESENTATION_ITEMS = (
     ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
                           "beyond"),
-    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 1 KB per "
-                                      "Gaussian, and about 5 KB in Edit Mode)"),
+    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 400-600 "
+                                      "bytes per Gaussian above a million as quadrilaterals, about 1 KB as octagons, "
+                                      "and several KB in Edit Mode)"),
     ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
                                  "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
 )

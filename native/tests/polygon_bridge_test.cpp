@@ -181,6 +181,26 @@ TEST(PolygonBridge, RecoveryWithoutThicknessTakesItFromTheRestScales) {
     EXPECT_NE(flat.scales, stored.scales);
 }
 
+// The per-face radius comes back from the polygon UVs bit for bit (imports keep no radius attribute), for every K, also
+// with a face's corners reversed (a reflection); a face without such a corner gives 0 (the object's rho).
+TEST(PolygonBridge, PolygonRadiusComesBackFromTheUvsExactly) {
+    for (int k : {3, 4, 8, 17}) {
+        GaussianCloud c = random_cloud(300, 0, 40 + k);
+        for (std::size_t i = 0; i < c.size(); ++i) c.opacities[i] = 0.01f + 0.99f * float(i) / float(c.size());
+        const SplatPolygons p = gaussians_to_polygons(c, {k, 3.0f});
+        std::vector<float> uvs = p.corner_uvs;
+        // Face 0's corners reversed, face 1's UVs zero (a face the user drew).
+        for (int a = 0; a < k / 2; ++a)
+            for (int b = 0; b < 2; ++b) std::swap(uvs[2 * a + b], uvs[2 * (k - 1 - a) + b]);
+        for (int a = 0; a < 2 * k; ++a) uvs[2 * k + a] = 0.0f;
+        const std::vector<float> radius = polygon_radius_from_uvs(mesh_view(p), uvs.data());
+        ASSERT_EQ(radius.size(), p.polygon_radius.size());
+        EXPECT_EQ(radius[0], p.polygon_radius[0]);
+        EXPECT_EQ(radius[1], 0.0f);
+        for (std::size_t f = 2; f < radius.size(); ++f) EXPECT_EQ(radius[f], p.polygon_radius[f]) << "K=" << k;
+    }
+}
+
 // The core property of DESIGN §5: an affine image of the polygon is the polygon of the affinely transformed
 // Gaussian, whatever the face's own radius rho_i. Applied to the mesh vertices (as a lattice or an edit would),
 // including reflections; opacities down to 0.01 give radii rho_i from 1.6 to rho.

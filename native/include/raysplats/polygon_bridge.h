@@ -161,6 +161,12 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
 // corners or corners outside `corner_count` get 0. Multi-threaded.
 std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
 
+// rho_i of each face read back from its polygon UVs: gaussians_to_polygons puts the corner at angle 0 at exactly
+// (rho_i, 0), so it is the u of the face's corner whose v is 0 and u positive (bit for bit what was stored); 0, which
+// means RecoveryOptions' rho, where no corner is. Blender imports since issue 17 keep no per-face radius attribute: the
+// UV map, which the material needs anyway, holds it. Multi-threaded.
+std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
+
 // The faces (ascending) with a corner on a vertex whose position differs, bit for bit, from previous_positions
 // (3 floats per vertex, mesh.vertex_count of them: the same mesh before an edit that kept its topology).
 // Multi-threaded.

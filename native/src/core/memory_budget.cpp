@@ -20,9 +20,9 @@ std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertic
     const std::uint64_t polygons = k * (12 + 8 + 4 + 8 + 8) + 4 * 15 + 12 * coeffs;
     // Blender's mesh (the larger layout, 3.4's structs: vertex 16, edge 12, corner 8, face 12 bytes; 3.6 and newer
     // store 12, 8, 8 and 4): per corner also the byte colour (4) and the UV (3.4's MLoopUV 12, later 8); per face
-    // opacity, radius, rest centre 3, rotation 4, scale 3 (floats) and the SH (3 floats per coefficient). No selection
-    // layers, no thickness (recomputed from the rest scales).
-    const std::uint64_t mesh = k * (16 + 12 + 8 + 4 + 12) + 12 + 4 * 12 + 12 * coeffs;
+    // opacity, rest centre 3, rotation 4, scale 3 (floats) and the SH (3 floats per coefficient). No selection layers,
+    // no thickness (recomputed from the rest scales), no radius (the UV map holds it).
+    const std::uint64_t mesh = k * (16 + 12 + 8 + 4 + 12) + 12 + 4 * 11 + 12 * coeffs;
     // The peak is the larger of making the polygons (the file's cloud, the core's copy of it and the polygons) and
     // filling the mesh (the polygon arrays are freed as Blender copies them: at most all of both), plus the copy of the
     // mesh an undo step keeps (the GUI; none in background mode).

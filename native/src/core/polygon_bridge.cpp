@@ -628,4 +628,22 @@ std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const fl
     return reversed;
 }
 
+std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs) {
+    std::vector<float> radius(mesh.face_count, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.face_count, kGrain), [&](const auto& range) {
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+            const std::int64_t start = mesh.face_corner_start[f], count = mesh.face_corner_count[f];
+            if (count < 1 || start < 0 || std::size_t(start + count) > mesh.corner_count) continue;
+            for (std::int64_t k = 0; k < count; ++k) {
+                const float* uv = &corner_uvs[2 * std::size_t(start + k)];
+                if (uv[1] == 0.0f && uv[0] > 0.0f && std::isfinite(uv[0])) {
+                    radius[f] = uv[0];
+                    break;
+                }
+            }
+        }
+    });
+    return radius;
+}
+
 }  // namespace raysplats
