@@ -147,6 +147,22 @@ class ImportMemory(unittest.TestCase):
             elements.foreach_get("select", selected)
             self.assertFalse(selected.any())
 
+    def test_filling_the_mesh_takes_every_array_out_of_the_polygons(self):
+        # fill_mesh frees each array as soon as Blender holds it (the caller's dict keeps none of them), so the import's
+        # peak is not the polygon arrays and the whole mesh at once.
+        core = st.native()
+        cloud = core.read_splats(st.data_file(SMALL), max_count=300)
+        polygons = core.gaussians_to_polygons(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                              cloud["opacities"], cloud["sh"], vertices_per_polygon=4, radius=3.0)
+        arrays = {key for key, value in polygons.items() if isinstance(value, np.ndarray)}
+        self.assertIn("corner_colors", arrays)
+        self.assertEqual(polygons["corner_colors"].dtype, np.uint8)
+        mesh = bpy.data.meshes.new("filled")
+        gaussian_mesh.fill_mesh(mesh, polygons)
+        self.assertFalse({key for key, value in polygons.items() if isinstance(value, np.ndarray)})
+        self.assertEqual(len(mesh.polygons), len(cloud["opacities"]) - int((cloud["opacities"] * 255.0 <= 1.0).sum()))
+        bpy.data.meshes.remove(mesh)
+
     def test_the_estimate_follows_the_layout(self):
         core = st.native()
         # Quadrilaterals need little more than half of what octagons do, and SH add 12 bytes a coefficient per copy.
