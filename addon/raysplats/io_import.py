@@ -77,9 +77,9 @@ def memory_size_text(n):
 REPRESENTATION_ITEMS = (
     ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
                           "beyond"),
-    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 400-600 "
-                                      "bytes per Gaussian above a million as quadrilaterals, about 1 KB as octagons, "
-                                      "and several KB in Edit Mode)"),
+    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 350-620 "
+                                      "bytes per Gaussian as quadrilaterals, Auto's choice above a million, about "
+                                      "twice that as octagons, and several KB in Edit Mode)"),
     ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
                                  "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
 )
@@ -89,8 +89,8 @@ AUTO_POLYGON_LIMIT = 3_000_000
 
 
 # Polygon Vertices "Auto" (0): octagons up to this many Gaussians, quadrilaterals above, which halves the mesh (issue
-# 17: 1.5 M Gaussians as quads need about 400 bytes each in Blender 4.5 instead of about 1 KB as octagons). Renders and
-# exports do not depend on K (each Gaussian is recovered by moments); Solid view and Material Preview show the splats
+# 17, showroom_1.5M.ply on Blender 4.5, before the other cuts: the import's peak 565 bytes a Gaussian above Blender as
+# quadrilaterals, 992 as octagons; examples/benchmark_import_memory.py --k). Renders and exports do not depend on K (each Gaussian is recovered by moments); Solid view and Material Preview show the splats
 # as four-cornered patches then.
 AUTO_OCTAGON_LIMIT = 1_000_000
 
