@@ -1,7 +1,7 @@
 # Memory per Gaussian of a polygon import (issue 17): the exact layers of the imported mesh (a byte colour attribute,
-# 4 bytes a corner; no float colour, no selection layers, no thickness or radius), Polygon Vertices Auto (8 up to 1 M Gaussians,
-# 4 above), and the peak resident memory of a real import (showroom_1.5M.ply, the default settings) against the
-# core's estimate (memory_budget.h) and the issue's target. Each test fails when its cut is reverted.
+# 4 bytes a corner; no float colour, no selection layers, no thickness or radius), Polygon Vertices Auto (8 up to 1 M
+# Gaussians, 4 above), and the peak resident memory of a real import (showroom_1.5M.ply, the default settings) against
+# the core's estimate (memory_budget.h) and the issue's target. Each test fails when its cut is reverted.
 # examples/benchmark_import_memory.py prints the same figures.
 import unittest
 
@@ -78,8 +78,8 @@ class ImportMemory(unittest.TestCase):
         estimate = st.native().import_memory_bytes(summary["count"], summary["sh_degree"], 4)
         print(f"\n  {BIG}: peak {peak / 1e6:.0f} MB above Blender before the import ({peak / count:.0f} B/Gaussian), "
               f"estimate {estimate / 1e6:.0f} MB ({estimate / count:.0f} B/Gaussian)")
-        # The estimate counts an undo copy of the mesh (which Blender 4.x shares with the mesh): the peak is below it, but
-        # not far below (a stale estimate refuses imports that fit or lets through ones that do not).
+        # The estimate counts an undo copy of the mesh (which Blender 4.x shares with the mesh): the peak is below it,
+        # but not far below (a stale estimate refuses imports that fit or lets through ones that do not).
         self.assertLess(peak, estimate)
         self.assertGreater(peak, 0.35 * estimate)
         self.assertLess(peak / count, TARGET_BYTES_PER_GAUSSIAN)

@@ -86,7 +86,8 @@ print(f"\nRaySplats import memory: {os.path.basename(args.file)}, {count:,} Gaus
 if not peak_reset:
     print("  (VmHWM could not be reset: the peaks below are the process's since it started)")
 print(f"  empty Blender (add-on, core)  {mb(empty)}")
-print(f"  peak during import            {mb(import_peak)}   {(import_peak - empty) / count:7.0f} B/Gaussian above empty")
+print(f"  peak during import            {mb(import_peak)}   {(import_peak - empty) / count:7.0f} B/Gaussian "
+      "above empty")
 print(f"  after import                  {mb(after_import)}   {(after_import - empty) / count:7.0f} B/Gaussian")
 print(f"  peak with the evaluated copy  {mb(evaluated_peak)}   {(evaluated_peak - empty) / count:7.0f} B/Gaussian")
 print(f"  after evaluation              {mb(after_evaluation)}   {(after_evaluation - empty) / count:7.0f} B/Gaussian")

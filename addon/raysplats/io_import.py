@@ -90,8 +90,8 @@ AUTO_POLYGON_LIMIT = 3_000_000
 
 # Polygon Vertices "Auto" (0): octagons up to this many Gaussians, quadrilaterals above, which halves the mesh (issue
 # 17, showroom_1.5M.ply on Blender 4.5, before the other cuts: the import's peak 565 bytes a Gaussian above Blender as
-# quadrilaterals, 992 as octagons; examples/benchmark_import_memory.py --k). Renders and exports do not depend on K (each Gaussian is recovered by moments); Solid view and Material Preview show the splats
-# as four-cornered patches then.
+# quadrilaterals, 992 as octagons; examples/benchmark_import_memory.py --k). Renders and exports do not depend on K
+# (each Gaussian is recovered by moments); Solid view and Material Preview show the splats as four-cornered patches.
 AUTO_OCTAGON_LIMIT = 1_000_000
 
 
