@@ -164,6 +164,28 @@ class ImportMemory(unittest.TestCase):
         self.assertEqual(len(mesh.polygons), len(cloud["opacities"]) - int((cloud["opacities"] * 255.0 <= 1.0).sum()))
         bpy.data.meshes.remove(mesh)
 
+    def test_colours_written_through_foreach_set_and_over_an_older_float_attribute(self):
+        # Where the bytes cannot be copied in place, foreach_set writes the same colours; a float colour attribute of
+        # that name (files from before byte colours) becomes a byte one.
+        from unittest import mock
+        st.reset_scene()
+        obj, _, _ = io_import.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=500)
+        mesh = obj.data
+        corners = len(mesh.loops)
+        in_place = np.empty(4 * corners, dtype=np.float32)
+        mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", in_place)
+        mesh.color_attributes.remove(mesh.color_attributes[gaussian_mesh.ATTR_COLOR])
+        mesh.color_attributes.new(gaussian_mesh.ATTR_COLOR, "FLOAT_COLOR", "CORNER")
+        rgba8 = np.round(in_place.reshape(-1, 4) * 255).astype(np.uint8)  # (any bytes will do)
+        with mock.patch.object(gaussian_mesh, "write_bytes_in_place", return_value=False):
+            gaussian_mesh.write_corner_colors(mesh, rgba8)
+        color = mesh.color_attributes[gaussian_mesh.ATTR_COLOR]
+        self.assertEqual((color.data_type, color.domain), ("BYTE_COLOR", "CORNER"))
+        self.assertEqual(mesh.color_attributes.active_color.name, gaussian_mesh.ATTR_COLOR)
+        written = np.empty(4 * corners, dtype=np.float32)
+        color.data.foreach_get("color", written)
+        np.testing.assert_allclose(written.reshape(-1, 4), st.native().srgb8_to_linear(rgba8), atol=1e-6)
+
     def test_the_estimate_follows_the_layout(self):
         core = st.native()
         # Quadrilaterals need little more than half of what octagons do, and SH add 12 bytes a coefficient per copy.
