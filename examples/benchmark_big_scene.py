@@ -115,6 +115,7 @@ if compact_splats.is_compact_object(obj):
     t = time.perf_counter()
     bpy.ops.object.mode_set(mode="EDIT")
     stage("enter Edit Mode on the region", time.perf_counter() - t)
+    bpy.ops.mesh.select_all(action="SELECT")  # (an import selects nothing)
     bpy.ops.transform.translate(value=(0.0, 0.0, 0.1))
     t = time.perf_counter()
     bpy.ops.object.mode_set(mode="OBJECT")

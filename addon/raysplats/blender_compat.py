@@ -82,6 +82,10 @@ EVALUATED_MESH_COPIES_ON_READ = not _since(3, 6)
 # through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_fast_read.read_uv_map).
 UV_MAPS_ARE_ATTRIBUTES = _since(3, 5)
 
+# Mesh.vertices/edges/polygons.add() select every new element: from 3.4 on in bool attributes of their own (before,
+# flag bits in the MVert/MEdge/MPoly structs). A mesh without them has nothing selected.
+MESH_SELECTION_ATTRIBUTES = (".select_vert", ".select_edge", ".select_poly")
+
 # --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
 
 # Blender 5.3 gave PointCloud a type, "Points" or "3D Gaussian Splats", and renders the latter as splats from the point

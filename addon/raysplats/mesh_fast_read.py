@@ -207,6 +207,30 @@ def read_uv_map(mesh, name):
     return uvs.reshape(-1, 2)
 
 
+def write_bytes_in_place(elements, values):
+    """Copies `values` (count x 4 uint8) straight into the array behind the bpy collection `elements` (a byte colour
+    attribute's data: r, g, b, a bytes per element, as Blender 3.4 to 5.x store them) without the float array
+    foreach_set would need (16 bytes a corner). Checks first that the elements are 4 bytes apart and span exactly the
+    values, and after the copy that the values read back through RNA (color_srgb) are the ones written. False (nothing
+    trustworthy written: the caller writes through foreach_set) when a check fails."""
+    count = len(elements)
+    if count != len(values) or values.dtype != np.uint8 or values.shape[1:] != (4,):
+        return False
+    if count == 0:
+        return True
+    try:
+        first = elements[0].as_pointer()
+        if count > 1 and (elements[1].as_pointer() - first != 4 or elements[count - 1].as_pointer() - first
+                          != 4 * (count - 1)):
+            return False
+        np.copyto(np.frombuffer((ctypes.c_char * (4 * count)).from_address(first), dtype=np.uint8),
+                  np.ascontiguousarray(values).reshape(-1))
+        spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
+        return all(np.allclose(tuple(elements[int(i)].color_srgb), values[i] / 255.0, atol=1e-6) for i in spots)
+    except Exception:  # the fast path is only an optimisation: foreach_set still writes
+        return False
+
+
 # --- Edit Mode --------------------------------------------------------------------------------------------------------
 # In Edit Mode the evaluated mesh wraps the edit BMesh; reading its arrays through bpy, or obj.to_mesh(), makes Blender
 # convert the whole BMesh into a Mesh: about 1.6 us per octagon splat, 2.4 s on showroom_1.5M after every move of a few
