@@ -96,6 +96,9 @@ class ImportMemory(unittest.TestCase):
         self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 0, max_count=1_000_001), 4)
         self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 8), 8)  # explicit K is kept
         self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 6, max_count=10), 6)
+        for impossible in (1, 2):  # (the operator's range starts at 0, Auto): a clear error, not the core's
+            with self.assertRaisesRegex(ValueError, f"Polygon Vertices {impossible}: a polygon needs at least 3"):
+                io_import.resolve_vertices_per_polygon(core, path, impossible)
         # The operator's default is Auto.
         self.assertEqual(bpy.ops.import_scene.gaussian_splats.get_rna_type().properties["vertices_per_polygon"].default,
                          0)

@@ -103,6 +103,8 @@ def auto_vertices_per_polygon(count):
 def resolve_vertices_per_polygon(core, filepath, vertices_per_polygon, max_count=0):
     """`vertices_per_polygon`, or for 0 (Auto) auto_vertices_per_polygon() of the Gaussians the file declares (at most
     max_count), read from its header."""
+    if vertices_per_polygon in (1, 2) or vertices_per_polygon < 0:
+        raise ValueError(f"Polygon Vertices {vertices_per_polygon}: a polygon needs at least 3 (0: Auto)")
     if vertices_per_polygon > 0:
         return vertices_per_polygon
     count = core.probe_splat_file(filepath)["count"]
