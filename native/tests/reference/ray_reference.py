@@ -125,10 +125,11 @@ def render(splats, world_to_view, fx, fy, width, height, near=0.2, footprint="ra
             px, py = np.meshgrid(np.arange(tx0, tx1), np.arange(ty0, ty1))
             px, py = px.ravel(), py.ravel()
             d = np.stack([(px + 0.5 - 0.5 * width) / fx, (py + 0.5 - 0.5 * height) / fy, np.ones(len(px))])  # (3, P)
-            du = A[sel] @ d                                              # (G, 3, P)
-            pd = np.einsum("gi,gip->gp", pu[sel], du)
-            dd = np.einsum("gip,gip->gp", du, du)
-            t = -pd / dd                                                 # view depth of the maximum (d has z = 1)
+            if footprint == "ray" or order == "ray" or cull == "hit":
+                du = A[sel] @ d                                          # (G, 3, P)
+                pd = np.einsum("gi,gip->gp", pu[sel], du)
+                dd = np.einsum("gip,gip->gp", du, du)
+                t = -pd / dd                                             # view depth of the maximum (d has z = 1)
             if footprint == "ray":
                 dist2 = np.maximum(pp[sel][:, None] + pd * t, 0.0)            # |pu + t du|^2 = pp - pd^2 / dd
                 alpha = np.minimum(0.99, opac[sel][:, None] * np.exp(-0.5 * dist2))
