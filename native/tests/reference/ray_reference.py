@@ -7,7 +7,8 @@ and either order, to attribute the difference between RaySplats and the EWA rast
                      with y = S^-1 R^T (o + t d - m) (Mahalanobis radius cut at min(3, sqrt(2 ln(255 opacity)))), as
                      RaySplats' volumetric mode evaluates it; no dilation, no clamp;
     order "centre":  one global sort by the view depth of the centre (what rasterizers do);
-    order "ray":     per pixel, by the depth of the point of maximum response on the ray (what RaySplats does).
+    order "ray":     per pixel, by the depth of the point of maximum response on the ray (what RaySplats does);
+    order "ray_centre": per pixel, by the depth of the centre's projection onto the ray (an experiment).
 
 Everything else is the rasterizer's convention: alpha = min(0.99, opacity G), cut below 1/255, colour from SH in the
 direction camera -> centre clamped at 0, display-space compositing, Gaussians with centre depth <= near culled
@@ -125,7 +126,7 @@ def render(splats, world_to_view, fx, fy, width, height, near=0.2, footprint="ra
             px, py = np.meshgrid(np.arange(tx0, tx1), np.arange(ty0, ty1))
             px, py = px.ravel(), py.ravel()
             d = np.stack([(px + 0.5 - 0.5 * width) / fx, (py + 0.5 - 0.5 * height) / fy, np.ones(len(px))])  # (3, P)
-            if footprint == "ray" or order == "ray" or cull == "hit":
+            if footprint == "ray" or order != "centre" or cull == "hit":
                 du = A[sel] @ d                                          # (G, 3, P)
                 pd = np.einsum("gi,gip->gp", pu[sel], du)
                 dd = np.einsum("gip,gip->gp", du, du)
@@ -150,8 +151,10 @@ def render(splats, world_to_view, fx, fy, width, height, near=0.2, footprint="ra
             if cull == "hit":
                 alpha[t < near] = 0.0
             colour_index = np.broadcast_to(sel[:, None], alpha.shape)
-            if order == "ray":
-                o = np.argsort(np.where(alpha > 0, t, np.inf), axis=0, kind="stable")
+            if order in ("ray", "ray_centre"):
+                # "ray_centre": per ray, by the depth of the centre's projection onto the ray (an experiment).
+                key = t if order == "ray" else (pv[sel] @ d) / (d * d).sum(axis=0)[None, :]
+                o = np.argsort(np.where(alpha > 0, key, np.inf), axis=0, kind="stable")
                 alpha = np.take_along_axis(alpha, o, axis=0)
                 colour_index = np.take_along_axis(colour_index, o, axis=0)
             trans_after = np.cumprod(1.0 - alpha, axis=0)
