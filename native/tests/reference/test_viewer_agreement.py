@@ -54,7 +54,9 @@ order 33.9 / 29.5, front / side). Both parts are what ray tracing 3D Gaussians i
   (Blackman-Harris 1.5 px: 26.7 dB; a Gaussian of 0.3 px^2 variance: 26.8 dB).
 - Order. Where large or elongated semi-transparent Gaussians overlap, the depth of a Gaussian's response maximum along
   a ray is not its centre's depth, and the two orders composite the same Gaussians differently (small.splat's
-  Gaussians overlap most: median opacity 0.11 over a whole frame of them).
+  Gaussians overlap most: median opacity 0.11 over a whole frame of them). It is the sort key more than sorting per
+  ray: per ray but keyed by the depth of the centre's projection onto the ray, small.splat's side view is 37.3 dB from
+  the global centre sort, and 30.4 dB from EWA (ray_reference order "ray_centre").
 - The rest is the same or immaterial: the engine stops after the Gaussian that takes T below 1e-4, the rasterizer
   before it (the two rules, both EWA, on the donut, the most opaque scene: 73 dB apart); the engine cuts each
   Gaussian at Mahalanobis radius 3, EWA at a square of 3 sqrt(lambda_max) pixels (EWA with the engine's cut: 50.6 /
