@@ -3,7 +3,7 @@
 Written from the 3DGS paper (Kerbl et al. 2023, "3D Gaussian Splatting for Real-Time Radiance Field Rendering",
 §4 and §6) and the conventions of its reference CUDA rasterizer (diff-gaussian-rasterization, forward.cu), calling
 nothing of RaySplats. Its readers, too, are written from the file formats' specifications (INRIA PLY, antimatter15
-.splat), so a reader bug of the project cannot hide here.
+.splat, SuperSplat compressed PLY in supersplat_compressed_ply.py), so a reader bug of the project cannot hide here.
 
 Conventions (those of the reference rasterizer):
 - Covariance Sigma = R S S^T R^T, R from the unit quaternion (w, x, y, z), S = diag(scale).
@@ -98,8 +98,24 @@ def read_dot_splat(path):
     return Splats(raw["p"], (raw["q"].astype(np.float64) - 128.0) / 128.0, raw["s"], rgba[:, 3], sh)
 
 
+def read_supersplat_compressed_ply(path):
+    """SuperSplat's compressed PLY (chunk bounds and packed vertices), by the independent decoder in
+    supersplat_compressed_ply.py."""
+    from supersplat_compressed_ply import decode_compressed
+    d = decode_compressed(path)
+    n, rest = len(d["opacities"]), d["f_rest"]
+    sh = np.zeros((n, 1 + rest.shape[2], 3))
+    sh[:, 0] = d["f_dc"]
+    sh[:, 1:] = np.transpose(rest, (0, 2, 1))  # f_rest is (n, channel, coefficient)
+    return Splats(d["positions"], d["rotations"], d["scales"], d["opacities"], sh)
+
+
 def read_splats(path):
     if path.endswith(".ply"):
+        with open(path, "rb") as f:
+            header = f.read(4096)
+        if b"\nelement chunk " in header:
+            return read_supersplat_compressed_ply(path)
         return read_inria_ply(path)
     if path.endswith(".splat"):
         return read_dot_splat(path)
