@@ -486,6 +486,9 @@ def merge_region_back(context, region, target=None):
     bpy.data.objects.remove(region)
     if mesh.users == 0:
         bpy.data.meshes.remove(mesh)
+    # Removing an object leaves the view layer's base of it until the next sync (4.x): code iterating the view
+    # layer's objects before then (the next Edit Selected as Polygons) would read the freed object.
+    context.view_layer.update()
     return len(part["opacities"])
 
 
