@@ -129,6 +129,7 @@ if compact_splats.is_compact_object(obj):
     options = {"vertices_per_polygon": args.region_k} if args.region_k else {}
     t = start()
     region, _ = compact_splats.edit_region_as_polygons(context, obj, mask, **options)
+    context.view_layer.update()  # the evaluation it causes (the next redraw's) belongs to this stage
     stage(f"edit region as polygons ({int(mask.sum()) / 1e3:.0f} k, K = {region.raysplats.vertices_per_polygon})",
           time.perf_counter() - t)
     context.view_layer.objects.active = region
@@ -144,6 +145,7 @@ if compact_splats.is_compact_object(obj):
     stage("leave Edit Mode", time.perf_counter() - t)
     t = start()
     compact_splats.merge_region_back(context, region, obj)
+    context.view_layer.update()
     stage("merge the region back", time.perf_counter() - t)
 
 if not args.no_render:
