@@ -156,7 +156,13 @@ def selected_points(data):
     count = point_count(data)
     mask = np.zeros(count, dtype=bool)
     if hasattr(data, "vertices"):
-        data.vertices.foreach_get("select", mask)
+        # The vertex selection is the boolean attribute ".select_vert" (3.4 on), read in bulk; through the vertices'
+        # "select" it goes one vertex at a time.
+        attribute = data.attributes.get(".select_vert")
+        if attribute is not None and attribute.data_type == "BOOLEAN" and attribute.domain == "POINT":
+            attribute.data.foreach_get("value", mask)
+        else:
+            data.vertices.foreach_get("select", mask)
     else:
         attribute = data.attributes.get(".selection")
         if attribute is not None:
