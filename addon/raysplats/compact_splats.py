@@ -40,8 +40,10 @@ REMOVED_MARK = -1
 # Face attribute of a region object: 1 + the index (among the region's points, in order) of the point each face was
 # made from; 0 for faces that came from elsewhere (joined objects).
 REGION_SLOT = "raysplats_region_slot"
-# Polygon vertices of a region (Edit Selected as Polygons' default): Blender's Edit Mode costs per vertex, corner and
-# edge, and 4 corners enter Edit Mode with 200 k Gaussians within 1.5 s (see README, "Big scenes").
+# Polygon vertices of a region (Edit Selected as Polygons' default). Blender's Edit Mode entry costs per polygon
+# corner (a vertex, an edge and a corner each, with their layers): measured on a 200 k region of 13.5 M Gaussians,
+# about 400 bytes and 0.4 us of CPU (4.5) to 0.6 us (3.4) per corner; K = 4 enters in 0.3-0.5 s of CPU adding
+# 0.3 GB, K = 8 in 0.7-0.9 s adding 0.6 GB (examples/benchmark_big_scene.py; README, "Big scenes").
 REGION_VERTICES_PER_POLYGON = 4
 CLOUD_KEYS = ("positions", "rotations", "scales", "opacities", "sh")
 
