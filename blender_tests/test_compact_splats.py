@@ -140,6 +140,9 @@ class RegionEditing(unittest.TestCase):
         self.assertIs(self.obj.data, data)
         self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))
         self.assertEqual(compact_splats.gaussian_count(self.obj.data), int((~self.visible).sum()))
+        hidden = np.zeros(len(self.mask), dtype=bool)
+        self.obj.data.vertices.foreach_get("hide", hidden)
+        np.testing.assert_array_equal(hidden, self.visible)  # Edit Mode does not show the points out in the region
         bpy.context.view_layer.update()
         self.assertEqual(region.matrix_world, self.obj.matrix_world)  # the same place, to the last bit
         self.assertIs(compact_splats.region_target(region), self.obj)
@@ -152,6 +155,8 @@ class RegionEditing(unittest.TestCase):
         # Every point back where it was, bit for bit (unedited polygons return their stored values).
         self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
         self.assertFalse(compact_splats.region_marks(self.obj.data).any())
+        self.obj.data.vertices.foreach_get("hide", hidden)
+        self.assertFalse(hidden.any())
 
     def test_taken_points_are_skipped_by_render_and_export(self):
         region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)

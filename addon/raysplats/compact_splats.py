@@ -211,9 +211,26 @@ class _PointViews:
         del self.sh_rest[(self.sh_degree + 1) ** 2 - 1:]
         self.marks = self._attribute_view(data.attributes[REGION_MARK])
 
+    def hide(self, rows, hidden):
+        """Hides (or reveals) points `rows` in Edit Mode (a mesh's ".hide_vert"; point clouds have no hiding): the
+        points out in a region or removed are not shown there."""
+        if not hasattr(self.data, "vertices") or not len(rows):
+            return
+        attribute = self.data.attributes.get(".hide_vert")
+        if attribute is None:
+            if not hidden:
+                return
+            try:
+                attribute = self.data.attributes.new(".hide_vert", "BOOLEAN", "POINT")
+            except (RuntimeError, TypeError, ValueError):  # a Blender that keeps the flags elsewhere: only cosmetic
+                return
+        if attribute.data_type != "BOOLEAN" or attribute.domain != "POINT":
+            return
+        self._attribute_view(attribute)[rows] = hidden
+
     def _attribute_view(self, attribute):
         width = native_splats._width(attribute.data_type) or 1
-        dtype = np.int32 if attribute.data_type == "INT" else np.float32
+        dtype = {"INT": np.int32, "BOOLEAN": np.bool_}.get(attribute.data_type, np.float32)
         return self._view(attribute.data, blender_compat.ATTRIBUTE_VALUE_KEY.get(attribute.data_type, "value"),
                           width, dtype)
 
@@ -233,13 +250,14 @@ class _PointViews:
 
     def _in_place(self, elements, key, width, dtype):
         count = self.count
+        item = np.dtype(dtype).itemsize
         first = elements[0].as_pointer()
         stride = elements[1].as_pointer() - first
-        if stride < width * 4 or stride % 4 or elements[count - 1].as_pointer() - first != (count - 1) * stride:
+        if stride < width * item or stride % item or elements[count - 1].as_pointer() - first != (count - 1) * stride:
             return None
-        size = (count - 1) * stride + width * 4
+        size = (count - 1) * stride + width * item
         buffer = (ctypes.c_char * size).from_address(first)
-        view = np.ndarray((count, width), dtype=dtype, buffer=buffer, strides=(stride, 4))
+        view = np.ndarray((count, width), dtype=dtype, buffer=buffer, strides=(stride, item))
         for i in np.linspace(0, count - 1, 8).astype(np.int64):  # spot checks against RNA
             value = getattr(elements[int(i)], key)
             expected = np.array(value if width > 1 else [value], dtype=dtype)
@@ -330,6 +348,7 @@ def restore_regions(obj, region_ids):
         if len(rows):
             views = _PointViews(obj.data)
             views.marks[rows] = 0
+            views.hide(rows, False)
             views.commit()
             restored = len(rows)
     for region_id in region_ids:
@@ -379,6 +398,7 @@ def edit_region_as_polygons(context, obj, mask=None, vertices_per_polygon=REGION
         region[REGION_ID_PROPERTY] = region_id
         region[REGION_SIZE_PROPERTY] = len(rows)
         views.marks[rows] = region_id
+        views.hide(rows, True)
         views.commit()
         regions[region_id] = region.name
         _set_open_regions(obj, regions)
@@ -486,6 +506,8 @@ def merge_region_back(context, region, target=None):
     views.scatter(destination[keep], part, order[keep])
     views.marks[destination] = 0
     views.marks[free[len(extra):]] = REMOVED_MARK  # lost points no gained Gaussian took
+    views.hide(destination, False)
+    views.hide(free[len(extra):], True)
     views.commit()
     regions = open_regions(target)
     regions.pop(region_id, None)
