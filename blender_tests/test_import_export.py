@@ -64,10 +64,13 @@ class ImportExport(unittest.TestCase):
                 self.assertIn("gs_color", mesh.color_attributes)
                 self.assertIn("gs_uv", mesh.uv_layers)
                 self.assertEqual(mesh.materials[0].name, "RaySplats Gaussian")
-                # Colour attribute alpha is the opacity of the face's Gaussian.
+                # Colour attribute alpha is the opacity of the face's Gaussian (a byte colour attribute: to 1/510).
+                self.assertEqual(mesh.color_attributes["gs_color"].data_type, "BYTE_COLOR")
                 colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
                 mesh.color_attributes["gs_color"].data.foreach_get("color", colors)
-                np.testing.assert_allclose(colors.reshape(-1, 8, 4)[:, 0, 3], cloud["opacities"], rtol=1e-6)
+                k = obj.raysplats.vertices_per_polygon
+                np.testing.assert_allclose(colors.reshape(-1, k, 4)[:, 0, 3], cloud["opacities"],
+                                           atol=0.5 / 255 + 1e-6)
 
     def test_untouched_scene_exports_the_gaussians_it_imported(self):
         for name, _, _, _ in REAL_FILES:

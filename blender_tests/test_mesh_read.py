@@ -58,6 +58,9 @@ class MeshRead(unittest.TestCase):
     def tearDown(self):
         mesh_fast_read._loop_layout_failed = False
         mesh_fast_read._face_layout_failed = False
+        mesh_fast_read._bmesh_layout_failed = False
+        if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
 
     def assert_reads_like_foreach_get(self, mesh, arrays, positions_path=POSITIONS_PATH, corners_path=CORNERS_PATH,
                                       faces_path=FACES_PATH):
@@ -261,3 +264,70 @@ class MeshRead(unittest.TestCase):
         # The first corner looked for 4 bytes in: 3.x's MPoly.totloop, past the 4-byte element from 3.6 on.
         with mock.patch.object(blender_compat, "FACE_START_OFFSET", 4):
             self.assertEqual(read(), "foreach_get")
+
+    def test_edit_mode_positions_are_read_from_the_bmesh_while_the_faces_stay_as_they_were(self):
+        """mesh_fast_read.read_edit_mode_positions reads Edit Mode positions in place from the BMesh: exactly what
+        Blender's own conversion (to_mesh) gives after a move, "topology" once faces were reversed, deleted or added,
+        and "unavailable" (never a wrong read) when the BMesh is not laid out as blender_compat says."""
+        obj = st.import_file(SCENE)
+        topology = gaussian_mesh.mesh_arrays(obj.data)[1:]
+        bpy.context.view_layer.objects.active = obj
+        bpy.ops.object.mode_set(mode="EDIT")
+
+        def read(arrays=topology):
+            positions = np.full((len(bmesh.from_edit_mesh(obj.data).verts), 3), np.nan, dtype=np.float32)
+            return mesh_fast_read.read_edit_mode_positions(obj.data, positions, *arrays), positions
+
+        def converted():
+            """Positions and topology as Blender's conversion of the edit mesh gives them."""
+            bpy.context.view_layer.update()
+            evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            try:
+                return tuple(np.copy(a) for a in gaussian_mesh.mesh_arrays(evaluated.to_mesh()))
+            finally:
+                evaluated.to_mesh_clear()
+
+        path, positions = read()
+        self.assertEqual(path, "read")
+        self.assertTrue(np.array_equal(positions, converted()[0]))
+        # A few faces moved by Blender's own operator (as a user moves them).
+        bpy.context.tool_settings.mesh_select_mode = (False, False, True)
+        bpy.ops.mesh.select_all(action="DESELECT")
+        edit = bmesh.from_edit_mesh(obj.data)
+        edit.faces.ensure_lookup_table()
+        for face in (5, 6, 700):
+            edit.faces[face].select_set(True)
+        bmesh.update_edit_mesh(obj.data)
+        bpy.ops.transform.translate(value=(0.0, 0.0, 0.05))
+        path, moved = read()
+        self.assertEqual(path, "read")
+        expected = converted()
+        self.assertTrue(np.array_equal(moved, expected[0]))
+        self.assertEqual(int(np.any(moved != positions, axis=1).sum()), 3 * 8)
+        # The layout checked wrongly (a BMVert's position looked for 4 bytes off): nothing is read, and the reader is
+        # not tried again; the caller converts the mesh instead.
+        mesh_fast_read._bmesh_checked.clear()
+        layout = dict(blender_compat.BMESH_LAYOUT, vert_co=blender_compat.BMESH_LAYOUT["vert_co"] + 4)
+        with mock.patch.object(blender_compat, "BMESH_LAYOUT", layout):
+            self.assertEqual(read()[0], "unavailable")
+        self.assertEqual(read()[0], "unavailable")
+        mesh_fast_read._bmesh_layout_failed = False
+        self.assertEqual(read()[0], "read")
+        # Corners reversed (same counts), a face deleted, faces added: the topology differs from the caller's.
+        bpy.ops.mesh.flip_normals()
+        self.assertEqual(read()[0], "topology")
+        flipped = converted()
+        path, positions = read(flipped[1:])
+        self.assertEqual(path, "read")
+        self.assertTrue(np.array_equal(positions, flipped[0]))
+        bpy.ops.mesh.delete(type="FACE")
+        self.assertEqual(read(flipped[1:])[0], "topology")
+        bpy.ops.mesh.select_all(action="DESELECT")
+        bpy.ops.mesh.primitive_plane_add()
+        self.assertEqual(read(flipped[1:])[0], "topology")
+        path, positions = read(converted()[1:])
+        self.assertEqual(path, "read")
+        self.assertTrue(np.array_equal(positions, converted()[0]))
+        bpy.ops.object.mode_set(mode="OBJECT")
+        positions = np.empty((len(obj.data.vertices), 3), dtype=np.float32)
+        self.assertEqual(mesh_fast_read.read_edit_mode_positions(obj.data, positions, *topology), "unavailable")

@@ -54,9 +54,9 @@ class PolygonRadius(unittest.TestCase):
         cloud = visible(st.native().read_splats(st.data_file(DONUT)))
         self.assertEqual(len(mesh.polygons), 45624 - 1518)
         self.assertIn("1,518 Gaussian(s) with opacity below 1/255 (invisible) not imported", warnings)
-        attribute = mesh.attributes[gaussian_mesh.ATTR_RADIUS]
-        self.assertEqual((attribute.data_type, attribute.domain), ("FLOAT", "FACE"))
-        radius = face_values(mesh, gaussian_mesh.ATTR_RADIUS)
+        # (Kept in the UV map since issue 17, not in a gs_radius attribute: face_attributes reads it from there.)
+        self.assertNotIn(gaussian_mesh.ATTR_RADIUS, mesh.attributes)
+        radius = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
         expected = mt.visible_radius(cloud["opacities"].astype(np.float64))
         np.testing.assert_allclose(radius, expected, rtol=1e-6)
         self.assertGreater(int((radius < 3.0).sum()), 10000)
@@ -69,7 +69,9 @@ class PolygonRadius(unittest.TestCase):
         colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
         mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", colors)
         alpha = colors.reshape(-1, K, 4)[:, :, 3].astype(np.float64)
-        rim = alpha * np.exp(-0.5 * uv_radius ** 2)
+        # (The colour is a byte colour attribute: its alpha is the opacity to half a byte step.)
+        np.testing.assert_allclose(alpha, np.repeat(cloud["opacities"][:, None], K, axis=1), atol=0.5 / 255 + 1e-6)
+        rim = face_values(mesh, gaussian_mesh.ATTR_OPACITY)[:, None] * np.exp(-0.5 * uv_radius ** 2)
         np.testing.assert_allclose(rim[expected < 3.0], 1.0 / 255.0, rtol=1e-5)
         self.assertTrue(np.all(rim >= (1.0 / 255.0) * (1 - 1e-5)))
 
@@ -92,13 +94,24 @@ class PolygonRadius(unittest.TestCase):
         np.testing.assert_allclose(exported["opacities"], original["opacities"], rtol=1e-6)
 
     def test_faces_without_the_radius_attribute_use_the_objects_rho(self):
-        # A mesh without gs_radius (files from before it) reads as no per-face radius; a face the user draws has
-        # gs_radius 0 (Blender's default). Both are recovered with the object's rho: the square (±1, ±1, 0) has
-        # C = diag(1, 1, 0), so s = sqrt(2 λ) / rho = sqrt(2) / rho; with its own rho_i = 1.5, sqrt(2) / 1.5.
-        obj, _ = import_scene("small_sh3_inria.ply")
+        # Imports keep rho_i in the UV map (the corner at angle 0 is (rho_i, 0)), bit for bit; a stored gs_radius
+        # (files from before) wins where it is positive. Without either (no UV map either) there is no per-face
+        # radius; a face the user draws has radius 0. Both are recovered with the object's rho: the square
+        # (±1, ±1, 0) has C = diag(1, 1, 0), so s = sqrt(2 λ) / rho = sqrt(2) / rho; with its own rho_i = 1.5,
+        # sqrt(2) / 1.5.
+        obj, _ = import_scene(DONUT)
         rho = obj.raysplats.radius
         mesh = obj.data
+        opacities = visible(st.native().read_splats(st.data_file(DONUT)))["opacities"].astype(np.float64)
+        from_uvs = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
+        np.testing.assert_allclose(from_uvs, mt.visible_radius(opacities), rtol=1e-6)
+        stored = mesh.attributes.new(gaussian_mesh.ATTR_RADIUS, "FLOAT", "FACE")
+        stored.data.foreach_set("value", np.where(np.arange(len(mesh.polygons)) % 2 == 0, 2.0, 0.0).astype(np.float32))
+        combined = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
+        np.testing.assert_array_equal(combined[0::2], 2.0)
+        np.testing.assert_array_equal(combined[1::2], from_uvs[1::2])
         mesh.attributes.remove(mesh.attributes[gaussian_mesh.ATTR_RADIUS])
+        mesh.uv_layers.remove(mesh.uv_layers[gaussian_mesh.UV_MAP])
         depsgraph = bpy.context.evaluated_depsgraph_get()
         attributes = gaussian_mesh.face_attributes(obj.evaluated_get(depsgraph).data, obj.raysplats.sh_degree)
         self.assertIsNone(attributes["polygon_radius"])

@@ -290,7 +290,9 @@ class CleanUpAndColors(unittest.TestCase):
         colors = np.empty(len(self.obj.data.loops) * 4, dtype=np.float32)
         self.obj.data.color_attributes["gs_color"].data.foreach_get("color", colors)
         display = np.clip(0.5 + st.C0 * expected[:, 0, :], 0, 1)
-        linear = np.where(display <= 0.04045, display / 12.92, ((display + 0.055) / 1.055) ** 2.4)
+        # (A byte colour attribute: the display value's sRGB byte, which Blender gives back decoded to linear.)
+        linear = np.where(np.round(display * 255) / 255 <= 0.04045, np.round(display * 255) / 255 / 12.92,
+                          ((np.round(display * 255) / 255 + 0.055) / 1.055) ** 2.4)
         np.testing.assert_allclose(colors.reshape(-1, 8, 4)[:, 0, :3], linear, atol=1e-4)
         # Back to neutral: the imported colours exactly.
         for name in adjustment:

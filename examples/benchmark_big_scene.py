@@ -137,7 +137,7 @@ if compact_splats.is_compact_object(obj):
     bpy.ops.object.mode_set(mode="EDIT")
     stage("enter Edit Mode on the region", time.perf_counter() - t)
     t = start()
-    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.mesh.select_all(action="SELECT")  # (an import selects nothing)
     bpy.ops.transform.translate(value=(0.0, 0.0, 0.1))
     stage("select all, move it", time.perf_counter() - t)
     t = start()

@@ -82,6 +82,10 @@ EVALUATED_MESH_COPIES_ON_READ = not _since(3, 6)
 # through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_fast_read.read_uv_map).
 UV_MAPS_ARE_ATTRIBUTES = _since(3, 5)
 
+# Mesh.vertices/edges/polygons.add() select every new element: from 3.4 on in bool attributes of their own (before,
+# flag bits in the MVert/MEdge/MPoly structs). A mesh without them has nothing selected.
+MESH_SELECTION_ATTRIBUTES = (".select_vert", ".select_edge", ".select_poly")
+
 # --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
 
 # Blender 5.3 gave PointCloud a type, "Points" or "3D Gaussian Splats", and renders the latter as splats from the point
@@ -114,6 +118,27 @@ QUATERNION_ATTRIBUTE_TYPE = "QUATERNION" if "QUATERNION" in _ATTRIBUTE_TYPES els
 # The foreach_get/foreach_set key of each attribute type's values.
 ATTRIBUTE_VALUE_KEY = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR": "color", "QUATERNION": "value",
                        "FLOAT4": "vector"}
+
+# --- Edit Mode meshes (BMesh) ------------------------------------------------------------------------------------------
+
+# In Edit Mode a mesh lives in a BMesh; reading its positions through bpy makes Blender convert the whole BMesh into a
+# Mesh (about 1.6 us per octagon splat). edit_mesh_read.py reads them in place instead, at these byte offsets
+# (source/blender/bmesh/bmesh_class.h, .hh from 4.0: the same from 2.8 to 5.x), each checked on the BMesh at hand
+# against bmesh's Python API before its first read; any mismatch falls back to the conversion.
+BMESH_LAYOUT = {
+    "totvert": 0, "totloop": 8, "totface": 12,  # BMesh: int totvert, totedge, totloop, totface
+    "elem_table_dirty": 29,  # after 7 ints: char elem_index_dirty, elem_table_dirty
+    "vtable": 64, "ftable": 80, "vtable_tot": 88, "ftable_tot": 96,  # after the 4 mempool pointers (32..63)
+    "elem_index": 8,  # BMHeader: void *data; int index; char htype, hflag, api_flag
+    "vert_co": 16,  # BMVert: BMHeader head; float co[3]
+    "face_first_loop": 16, "face_len": 24,  # BMFace: BMHeader head; BMLoop *l_first; int len
+    "loop_vert": 16, "loop_next": 56,  # BMLoop: head; BMVert *v; BMEdge *e; BMFace *f; radial_next, radial_prev; next
+    "vert_flag": 1, "face_flag": 8,  # BM_VERT, BM_FACE
+}
+# bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): PyObject_VAR_HEAD, then BMesh *bm, then (for
+# elements) BMElem *ele.
+BPY_BMESH_POINTER_OFFSET = 3 * 8
+BPY_BMELEM_POINTER_OFFSET = 4 * 8
 
 # --- Operators --------------------------------------------------------------------------------------------------------
 

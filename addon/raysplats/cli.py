@@ -81,7 +81,8 @@ def _parser():
     def common(sub):
         sub.add_argument("inputs", nargs="*", help="input files or globs (none: the .blend Blender opened)")
         sub.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
-        sub.add_argument("--vertices-per-polygon", type=int, default=8, help="K for splat inputs (default 8)")
+        sub.add_argument("--vertices-per-polygon", type=int, default=0,
+                         help="K for splat inputs (default 0: Auto, 8 up to 1 M Gaussians, 4 above)")
         sub.add_argument("--radius", type=float, default=3.0, help="rho for splat inputs (default 3)")
         sub.add_argument("--up-axis", default="DETECT", choices=("DETECT", "AUTO", "-Y", "Y", "Z", "-Z", "X", "-X"),
                          help="up axis of splat inputs (default DETECT: found from the data, else by format; "

@@ -4,23 +4,28 @@
 import numpy as np
 
 from . import color_adjustment, native
-from .blender_compat import FACE_CORNER_COUNT_IS_WRITABLE, MESH_INDEX_DTYPE
+from .blender_compat import FACE_CORNER_COUNT_IS_WRITABLE, MESH_INDEX_DTYPE, MESH_SELECTION_ATTRIBUTES
 from .mesh_fast_read import ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribute, read_corner_vertices, \
-    read_face_corners, read_uv_map, read_vertex_positions
+    read_face_corners, read_uv_map, read_vertex_positions, write_bytes_in_place
 
 # Face-domain attributes of a Gaussian mesh. SH coefficient k (k = 0 is the DC term) lives in "gs_sh_<k>";
 # coefficients k >= 1 are in the face's local frame.
 ATTR_OPACITY = "gs_opacity"
+# Written by imports before the layer was dropped (issue 17); recovery now takes each face's thickness from its rest
+# scales where the attribute is missing.
 ATTR_THICKNESS = "gs_thickness"
 # rho_i, the Mahalanobis radius of the face's polygon: min(rho, sqrt(2 ln(255 a))), where the Gaussian is visible
-# (DESIGN §5). Recovery divides by it; faces without it (older files, faces the user adds: 0) use the object's rho.
+# (DESIGN §5). Recovery divides by it; faces without it (faces the user adds: 0) use the object's rho. Imports since
+# issue 17 do not write it: the UV map holds it (the corner at angle 0 is (rho_i, 0)), and face_attributes reads it
+# from there (older files with the attribute keep using it).
 ATTR_RADIUS = "gs_radius"
 ATTR_SH_PREFIX = "gs_sh_"
 # The Gaussian each face was made from; lets unedited faces export bit-exactly (see polygon_bridge.h).
 ATTR_REST_CENTER = "gs_rest_center"
 ATTR_REST_ROTATION = "gs_rest_rotation"  # quaternion w, x, y, z stored as a 4-float colour attribute
 ATTR_REST_SCALE = "gs_rest_scale"
-# Corner domain: display colour (linear RGB from the SH DC term, A = opacity) and local polygon UVs.
+# Corner domain: display colour (a byte colour attribute: the SH DC colour as sRGB bytes, which Blender shows as linear
+# RGB, A = opacity) and local polygon UVs.
 ATTR_COLOR = "gs_color"
 UV_MAP = "gs_uv"
 
@@ -41,41 +46,80 @@ def _write_attribute(mesh, name, data_type, domain, values):
     return attribute
 
 
-def fill_mesh(mesh, polygons):
-    """Fills an empty Mesh with the polygons of gaussians_to_polygons() and their per-face attributes."""
-    vertex_positions = polygons["vertex_positions"]
-    corner_count = len(polygons["corner_vertices"])
-    face_count = len(polygons["face_corner_start"])
+def write_corner_colors(mesh, rgba8):
+    """Writes the splat colour attribute (ATTR_COLOR, a byte colour attribute of the corners, made when missing) from
+    the core's bytes (corners x 4 uint8: sRGB-encoded RGB, linear A, as Blender stores byte colours; its `.color`
+    gives the linear values back): copied straight into Blender's array where it is laid out as bytes, else through
+    foreach_set. A float colour attribute of that name (files from before byte colours) is replaced."""
+    attribute = mesh.color_attributes.get(ATTR_COLOR)
+    if attribute is not None and (attribute.data_type != "BYTE_COLOR" or attribute.domain != "CORNER"):
+        mesh.color_attributes.remove(attribute)
+        attribute = None
+    if attribute is None:
+        mesh.color_attributes.new(ATTR_COLOR, "BYTE_COLOR", "CORNER")
+    # (Looked up again: adding a layer may move the others, which leaves earlier references dangling.)
+    attribute = mesh.color_attributes[ATTR_COLOR]
+    if not write_bytes_in_place(attribute.data, rgba8):
+        attribute.data.foreach_set("color", native.core().srgb8_to_linear(rgba8).ravel())
+    mesh.color_attributes.active_color = attribute
+    mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
 
+
+def fill_mesh(mesh, polygons):
+    """Fills an empty Mesh with the polygons of gaussians_to_polygons() and their per-face attributes. The arrays are
+    taken out of `polygons` (a dict the caller gives up) as Blender copies them, so that each is freed as soon as
+    Blender holds its values: the peak memory of an import is the mesh plus what has not been copied yet."""
+    take = polygons.pop
+    vertex_positions = take("vertex_positions")
     mesh.vertices.add(len(vertex_positions))
     mesh.vertices.foreach_set("co", vertex_positions.ravel())
-    mesh.edges.add(len(polygons["edge_vertices"]))
-    mesh.edges.foreach_set("vertices", _indices_in(polygons["edge_vertices"].ravel()))
-    mesh.loops.add(corner_count)
-    mesh.loops.foreach_set("vertex_index", _indices_in(polygons["corner_vertices"]))
-    mesh.loops.foreach_set("edge_index", _indices_in(polygons["corner_edges"]))
-    mesh.polygons.add(face_count)
-    mesh.polygons.foreach_set("loop_start", polygons["face_corner_start"])
+    del vertex_positions
+    edge_vertices = take("edge_vertices")
+    mesh.edges.add(len(edge_vertices))
+    mesh.edges.foreach_set("vertices", _indices_in(edge_vertices.ravel()))
+    del edge_vertices
+    corner_vertices = take("corner_vertices")
+    mesh.loops.add(len(corner_vertices))
+    mesh.loops.foreach_set("vertex_index", _indices_in(corner_vertices))
+    del corner_vertices
+    mesh.loops.foreach_set("edge_index", _indices_in(take("corner_edges")))
+    face_corner_start = take("face_corner_start")
+    mesh.polygons.add(len(face_corner_start))
+    mesh.polygons.foreach_set("loop_start", face_corner_start)
+    del face_corner_start
+    face_corner_count = take("face_corner_count")
     if FACE_CORNER_COUNT_IS_WRITABLE:
-        mesh.polygons.foreach_set("loop_total", polygons["face_corner_count"])
+        mesh.polygons.foreach_set("loop_total", face_corner_count)
+    del face_corner_count
+    # Nothing is selected: Blender's add() selects every new element, in bool layers of their own that Edit Mode
+    # would start from (all selected); without them nothing is (issue 17: 1 byte per vertex, edge and face).
+    remove_selection_layers(mesh)
 
-    _write_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", polygons["opacity"])
-    _write_attribute(mesh, ATTR_THICKNESS, "FLOAT", "FACE", polygons["thickness"])
-    _write_attribute(mesh, ATTR_RADIUS, "FLOAT", "FACE", polygons["polygon_radius"])
-    sh_local = polygons["sh_local"]
+    # (No gs_thickness: recovery computes each face's thickness from its rest scales, DESIGN §5.)
+    polygons.pop("thickness", None)
+    _write_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", take("opacity"))
+    polygons.pop("polygon_radius")  # (no gs_radius: the UV map holds it, see ATTR_RADIUS)
+    sh_local = take("sh_local")
     for k in range(sh_local.shape[1]):
         _write_attribute(mesh, sh_attribute_name(k), "FLOAT_VECTOR", "FACE", sh_local[:, k, :])
-    _write_attribute(mesh, ATTR_REST_CENTER, "FLOAT_VECTOR", "FACE", polygons["rest_centers"])
-    _write_attribute(mesh, ATTR_REST_ROTATION, "FLOAT_COLOR", "FACE", polygons["rest_rotations"])
-    _write_attribute(mesh, ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", polygons["rest_scales"])
+    del sh_local
+    _write_attribute(mesh, ATTR_REST_CENTER, "FLOAT_VECTOR", "FACE", take("rest_centers"))
+    _write_attribute(mesh, ATTR_REST_ROTATION, "FLOAT_COLOR", "FACE", take("rest_rotations"))
+    _write_attribute(mesh, ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", take("rest_scales"))
 
-    color = mesh.color_attributes.new(ATTR_COLOR, "FLOAT_COLOR", "CORNER")
-    color.data.foreach_set("color", polygons["corner_colors"].ravel())
-    mesh.color_attributes.active_color = color
-    mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
+    write_corner_colors(mesh, take("corner_colors"))
     uv_layer = mesh.uv_layers.new(name=UV_MAP)
-    uv_layer.data.foreach_set("uv", polygons["corner_uvs"].ravel())
+    uv_layer.data.foreach_set("uv", take("corner_uvs").ravel())
     mesh.update()
+
+
+def remove_selection_layers(mesh):
+    """Removes the selection layers of vertices, edges and faces (blender_compat.MESH_SELECTION_ATTRIBUTES): nothing
+    selected."""
+    for name in MESH_SELECTION_ATTRIBUTES:
+        attribute = mesh.attributes.get(name)
+        if attribute is not None:
+            mesh.attributes.remove(attribute)
 
 
 def mesh_arrays(mesh, reuse=None, previous=None):
@@ -109,8 +153,8 @@ def _contiguous(starts, counts):
 
 
 def face_attributes(mesh, sh_degree, reuse=None):
-    """The stored per-face Gaussian attributes (None where a modifier or edit removed them). `reuse`: an earlier
-    result whose arrays may be overwritten."""
+    """The stored per-face Gaussian attributes (None where a modifier or edit removed them; polygon_radius from the UV
+    map where gs_radius is missing). `reuse`: an earlier result whose arrays may be overwritten."""
     reuse = reuse or {}
     faces = len(mesh.polygons)
     coeffs = (sh_degree + 1) ** 2
@@ -125,21 +169,21 @@ def face_attributes(mesh, sh_degree, reuse=None):
                                  ("rest_rotations", ATTR_REST_ROTATION, "FLOAT_COLOR"),
                                  ("rest_scales", ATTR_REST_SCALE, "FLOAT_VECTOR")):
         attributes[key] = read_attribute(mesh, name, data_type, "FACE", faces, reuse.get(key))
-    attributes["reflected"] = reflected_faces(mesh)
-    return attributes
-
-
-def reflected_faces(mesh):
-    """1.0 for each face whose corners a reflection reversed (a Mirror modifier, an applied negative scale), else 0.0,
-    from the winding of the splat UVs (which run counter-clockwise on import); None without the UV map. Recovery
-    reflects those faces' view-dependent colour (polygon_bridge.h)."""
-    uvs = read_uv_map(mesh, UV_MAP) if len(mesh.polygons) else None
+    # From the splat UVs (which run counter-clockwise on import): "reflected", 1.0 for each face whose corners a
+    # reflection reversed (a Mirror modifier, an applied negative scale), whose view-dependent colour recovery
+    # reflects (polygon_bridge.h); and each face's rho_i where the mesh has no gs_radius.
+    uvs = read_uv_map(mesh, UV_MAP) if faces else None
     if uvs is None:
-        return None
-    starts = np.empty(len(mesh.polygons), dtype=np.int32)
-    counts = np.empty(len(mesh.polygons), dtype=np.int32)
-    read_face_corners(mesh, sizes=counts, starts=starts)
-    return native.core().faces_with_reversed_uvs(uvs, starts, counts)
+        attributes["reflected"] = None
+    else:
+        starts = np.empty(faces, dtype=np.int32)
+        counts = np.empty(faces, dtype=np.int32)
+        read_face_corners(mesh, sizes=counts, starts=starts)
+        attributes["reflected"] = native.core().faces_with_reversed_uvs(uvs, starts, counts)
+        from_uvs = native.core().polygon_radius_from_uvs(uvs, starts, counts)
+        stored = attributes["polygon_radius"]  # (a join with an older object: 0 on the faces that came without it)
+        attributes["polygon_radius"] = from_uvs if stored is None else np.where(stored > 0, stored, from_uvs)
+    return attributes
 
 
 def is_gaussian_object(obj):

@@ -77,14 +77,38 @@ def memory_size_text(n):
 REPRESENTATION_ITEMS = (
     ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
                           "beyond"),
-    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 1 KB per "
-                                      "Gaussian, and about 5 KB in Edit Mode)"),
+    ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 350-620 "
+                                      "bytes per Gaussian as quadrilaterals, Auto's choice above a million, about "
+                                      "twice that as octagons, and several KB in Edit Mode)"),
     ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
                                  "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
 )
 # Above this many Gaussians AUTO imports compact points: Blender's Edit Mode costs about 5 KB per polygon Gaussian
 # (issue 17: 9.3 GB and 13.8 s to enter it on 1.5 M), so bigger scenes are edited a region at a time.
 AUTO_POLYGON_LIMIT = 3_000_000
+
+
+# Polygon Vertices "Auto" (0): octagons up to this many Gaussians, quadrilaterals above, which halves the mesh (issue
+# 17, showroom_1.5M.ply on Blender 4.5, before the other cuts: the import's peak 565 bytes a Gaussian above Blender as
+# quadrilaterals, 992 as octagons; examples/benchmark_import_memory.py --k). Renders and exports do not depend on K
+# (each Gaussian is recovered by moments); Solid view and Material Preview show the splats as four-cornered patches.
+AUTO_OCTAGON_LIMIT = 1_000_000
+
+
+def auto_vertices_per_polygon(count):
+    """K for `count` Gaussians when Polygon Vertices is Auto: 8 up to AUTO_OCTAGON_LIMIT, 4 above."""
+    return 8 if count <= AUTO_OCTAGON_LIMIT else 4
+
+
+def resolve_vertices_per_polygon(core, filepath, vertices_per_polygon, max_count=0):
+    """`vertices_per_polygon`, or for 0 (Auto) auto_vertices_per_polygon() of the Gaussians the file declares (at most
+    max_count), read from its header."""
+    if vertices_per_polygon in (1, 2) or vertices_per_polygon < 0:
+        raise ValueError(f"Polygon Vertices {vertices_per_polygon}: a polygon needs at least 3 (0: Auto)")
+    if vertices_per_polygon > 0:
+        return vertices_per_polygon
+    count = core.probe_splat_file(filepath)["count"]
+    return auto_vertices_per_polygon(min(count, max_count) if max_count > 0 else count)
 
 
 def _not_enough(filepath, count, needed, available, advice):
@@ -122,14 +146,15 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, repre
     return "POLYGONS", polygons, None
 
 
-def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0, up_axis="DETECT",
+def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0, up_axis="DETECT",
                            min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS"):
     """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
     (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
     file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
     format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
-    Returns (object, warnings, stage timings). Raises on bad input or too little memory; nothing is added then
-    (a failure at any step leaves no mesh or object behind)."""
+    `vertices_per_polygon`: K, or 0 for Auto (auto_vertices_per_polygon). Returns (object, warnings, stage timings).
+    Raises on bad input or too little memory; nothing is added then (a failure at any step leaves no mesh or object
+    behind)."""
     from . import compact_splats  # (it imports this module)
 
     core = native.core()
@@ -140,6 +165,7 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=8, radius=3.0
     name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
     if base.lower() == "meta.json":  # an unbundled SOG: its folder names the scene
         name = os.path.basename(os.path.dirname(os.path.abspath(filepath))) or "Gaussians"
+    vertices_per_polygon = resolve_vertices_per_polygon(core, filepath, vertices_per_polygon, max_count)
     representation, needed, note = check_import_memory(core, filepath, vertices_per_polygon, max_count,
                                                        representation)
     obj = None
@@ -190,9 +216,12 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
     (the core's dict: positions, rotations, scales, opacities, sh, sh_degree, optional warnings), in the active
     collection, selected and active. Its transform is left as identity for the caller. Returns (object, warnings):
     the cloud's and this step's. `progress`: a StageProgress to report the stages to. A caller that hands over its
-    only reference to `cloud` lets it go as soon as the polygons hold every face's own Gaussian."""
+    only reference to `cloud` lets it go as soon as the polygons hold every face's own Gaussian. `vertices_per_polygon`:
+    K, or 0 for Auto (auto_vertices_per_polygon of the cloud's size)."""
     stage = progress.stage if progress is not None else (lambda name: None)
     core = native.core()
+    if vertices_per_polygon <= 0:
+        vertices_per_polygon = auto_vertices_per_polygon(len(cloud["opacities"]))
     stage("build polygons")
     polygons = core.gaussians_to_polygons(
         cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"],
@@ -207,7 +236,7 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
     mesh = bpy.data.meshes.new(name)
     obj = None
     try:
-        gaussian_mesh.fill_mesh(mesh, polygons)
+        gaussian_mesh.fill_mesh(mesh, polygons)  # (takes the arrays out of `polygons`, freeing each once copied)
         del polygons
         stage("object and material")
         mesh.materials.append(material.gaussian_material())
@@ -293,8 +322,10 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
     directory: StringProperty(subtype="DIR_PATH", options={"HIDDEN", "SKIP_SAVE"})
 
     vertices_per_polygon: IntProperty(
-        name="Polygon Vertices", default=8, min=3, max=64,
-        description="Vertices of the polygon each Gaussian becomes (more: smoother outline, heavier mesh)")
+        name="Polygon Vertices", default=0, min=0, max=64,
+        description="Vertices of the polygon each Gaussian becomes (more: smoother outline in Solid view and Material "
+                    "Preview, heavier mesh; renders and exports do not depend on it). 0: Auto, 8 up to 1 million "
+                    "Gaussians and 4 above (half the memory)")
     radius: FloatProperty(
         name="Polygon Radius", default=3.0, min=0.5, max=6.0,
         description="Mahalanobis radius of the polygons: 3 covers the Gaussian's 3-sigma support")

@@ -6,7 +6,7 @@ import ctypes
 
 import numpy as np
 
-from . import blender_compat
+from . import blender_compat, native
 
 _WIDTH_OF = {"FLOAT": 1, "FLOAT2": 2, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4}
 # The AttributeGroup data property that holds an attribute's values, by data type (foreach_get/foreach_set).
@@ -170,6 +170,11 @@ def read_face_corners(mesh, sizes=None, starts=None):
 _PLACING_PARENT_TYPES = {"OBJECT", "VERTEX", "VERTEX_3", "BONE"}
 
 
+def places_only(obj):
+    """True when `obj`'s parent (if any) only places it: no deforming parent's virtual modifier changes its geometry."""
+    return obj.parent is None or obj.parent_type in _PLACING_PARENT_TYPES
+
+
 def evaluated_mesh(obj, depsgraph):
     """The mesh to read the evaluated geometry of `obj` (an evaluated mesh object, not an instance) from: its evaluated
     mesh, or before Blender 3.6, when evaluation leaves the geometry as it is (Object Mode, no modifiers, no shape
@@ -177,7 +182,7 @@ def evaluated_mesh(obj, depsgraph):
     mesh makes."""
     mesh = obj.data
     if not blender_compat.EVALUATED_MESH_COPIES_ON_READ or obj.original.mode != "OBJECT" or len(obj.modifiers) \
-            or (obj.parent is not None and obj.parent_type not in _PLACING_PARENT_TYPES):
+            or not places_only(obj):
         return mesh
     datablock = obj.original.data.evaluated_get(depsgraph)
     if datablock.shape_keys is not None or (len(datablock.vertices), len(datablock.loops), len(datablock.polygons)) \
@@ -200,3 +205,119 @@ def read_uv_map(mesh, name):
     uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
     uv_layer.data.foreach_get("uv", uvs)
     return uvs.reshape(-1, 2)
+
+
+def write_bytes_in_place(elements, values):
+    """Copies `values` (count x 4 uint8) straight into the array behind the bpy collection `elements` (a byte colour
+    attribute's data: r, g, b, a bytes per element, as Blender 3.4 to 5.x store them) without the float array
+    foreach_set would need (16 bytes a corner). Checks first that the elements are 4 bytes apart and span exactly the
+    values, and after the copy that the values read back through RNA (color_srgb) are the ones written. False (nothing
+    trustworthy written: the caller writes through foreach_set) when a check fails."""
+    count = len(elements)
+    if count != len(values) or values.dtype != np.uint8 or values.shape[1:] != (4,):
+        return False
+    if count == 0:
+        return True
+    try:
+        first = elements[0].as_pointer()
+        if count > 1 and (elements[1].as_pointer() - first != 4 or elements[count - 1].as_pointer() - first
+                          != 4 * (count - 1)):
+            return False
+        np.copyto(np.frombuffer((ctypes.c_char * (4 * count)).from_address(first), dtype=np.uint8),
+                  np.ascontiguousarray(values).reshape(-1))
+        spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
+        return all(np.allclose(tuple(elements[int(i)].color_srgb), values[i] / 255.0, atol=1e-6) for i in spots)
+    except Exception:  # the fast path is only an optimisation: foreach_set still writes
+        return False
+
+
+# --- Edit Mode --------------------------------------------------------------------------------------------------------
+# In Edit Mode the evaluated mesh wraps the edit BMesh; reading its arrays through bpy, or obj.to_mesh(), makes Blender
+# convert the whole BMesh into a Mesh: about 1.6 us per octagon splat, 2.4 s on showroom_1.5M after every move of a few
+# splats. The native core walks the BMesh's vertex and face tables in place instead (read_edit_mesh_positions, at the
+# byte offsets blender_compat.BMESH_LAYOUT gives), once its layout has been checked here on the BMesh at hand against
+# bmesh's own Python API. Only the positions are read: the topology must be the one the caller had (checked corner by
+# corner), and face attributes are taken as unchanged (Edit Mode's tools move vertices; an attribute set in Edit Mode
+# reaches the render when Edit Mode is left).
+_bmesh_layout_failed = False  # a check failed once: this Blender lays its BMesh out otherwise; do not look again
+_bmesh_checked = set()  # addresses of the BMeshes whose layout was checked (a new one each time Edit Mode is entered)
+
+
+def _pointer_at(address):
+    return ctypes.c_void_p.from_address(address).value or 0
+
+
+def _int_at(address):
+    return ctypes.c_int.from_address(address).value
+
+
+def _bmesh_layout_holds(bm, address):
+    """True when the BMesh at `address` (bmesh's `bm`, element tables ensured) is laid out as BMESH_LAYOUT says: its
+    counts, and for a few vertices and faces their table entries, indices, positions, face sizes and loop links, match
+    what bmesh's Python API says. Only addresses that the previous checks vouched for are read."""
+    layout = blender_compat.BMESH_LAYOUT
+    if (_int_at(address + layout["totvert"]), _int_at(address + layout["totface"])) != (len(bm.verts), len(bm.faces)):
+        return False
+    if not len(bm.verts) or not len(bm.faces):
+        return False
+    vtable, ftable = _pointer_at(address + layout["vtable"]), _pointer_at(address + layout["ftable"])
+    if not vtable or not ftable or _int_at(address + layout["vtable_tot"]) < len(bm.verts) \
+            or _int_at(address + layout["ftable_tot"]) < len(bm.faces):
+        return False
+    element = blender_compat.BPY_BMELEM_POINTER_OFFSET
+    for i in np.linspace(0, len(bm.verts) - 1, _SPOT_CHECKS).astype(np.int64):
+        vert = bm.verts[int(i)]
+        pointer = _pointer_at(vtable + 8 * int(i))
+        if pointer == 0 or pointer != _pointer_at(id(vert) + element) \
+                or _int_at(pointer + layout["elem_index"]) != vert.index:
+            return False
+        if tuple((ctypes.c_float * 3).from_address(pointer + layout["vert_co"])) != tuple(vert.co):
+            return False
+    for j in np.linspace(0, len(bm.faces) - 1, _SPOT_CHECKS).astype(np.int64):
+        face = bm.faces[int(j)]
+        pointer = _pointer_at(ftable + 8 * int(j))
+        if pointer == 0 or pointer != _pointer_at(id(face) + element) \
+                or _int_at(pointer + layout["face_len"]) != len(face.loops):
+            return False
+        loop = _pointer_at(pointer + layout["face_first_loop"])
+        for face_loop in face.loops:
+            vert = face_loop.vert  # (held: the address of a temporary's element would be read after it is freed)
+            if loop == 0 or loop != _pointer_at(id(face_loop) + element) \
+                    or _pointer_at(loop + layout["loop_vert"]) != _pointer_at(id(vert) + element):
+                return False
+            loop = _pointer_at(loop + layout["loop_next"])
+    return True
+
+
+def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face_corner_count):
+    """Fills `out` (vertices x 3 float32, C-contiguous) with the vertex positions of `mesh` (in Edit Mode) straight from
+    its BMesh, when its faces are still exactly the given corner arrays. Returns how it went: "read"; "topology" (the
+    faces changed: read the mesh in full); "unavailable" (not in Edit Mode, or the BMesh is not laid out as expected)."""
+    global _bmesh_layout_failed
+    import bmesh
+
+    if _bmesh_layout_failed or not mesh.is_editmode:
+        return "unavailable"
+    bm = bmesh.from_edit_mesh(mesh)
+    # Clean element tables are what the native read relies on; both calls are free while nothing changed them.
+    bm.verts.ensure_lookup_table()
+    bm.faces.ensure_lookup_table()
+    address = _pointer_at(id(bm) + blender_compat.BPY_BMESH_POINTER_OFFSET)
+    if address not in _bmesh_checked:
+        try:
+            holds = _bmesh_layout_holds(bm, address)
+        except Exception:  # the fast path is only an optimisation: the caller reads the mesh in full
+            holds = False
+        if not holds:
+            _bmesh_layout_failed = True
+            return "unavailable"
+        _bmesh_checked.add(address)
+    core = native.core()
+    result = core.read_edit_mesh_positions(address, blender_compat.BMESH_LAYOUT, out, corner_vertices,
+                                           face_corner_start, face_corner_count)
+    if result == "stale":  # (not expected right after ensure_lookup_table, which rebuilds dirty tables)
+        bm.verts.ensure_lookup_table()
+        bm.faces.ensure_lookup_table()
+        result = core.read_edit_mesh_positions(address, blender_compat.BMESH_LAYOUT, out, corner_vertices,
+                                               face_corner_start, face_corner_count)
+    return "topology" if result != "read" else "read"

@@ -70,12 +70,9 @@ def refresh_corner_colors(obj):
     starts = np.empty(faces, dtype=np.int32)
     counts = np.empty(faces, dtype=np.int32)
     read_face_corners(mesh, sizes=counts, starts=starts)
-    rgba = native.core().splat_corner_colors(sh_dc.reshape(-1, 3), opacity, starts, counts, len(mesh.loops),
-                                             **color_adjustment.adjustment_of(obj.raysplats))
-    attribute = mesh.color_attributes.get(gaussian_mesh.ATTR_COLOR)
-    if attribute is None or attribute.domain != "CORNER":
-        attribute = mesh.color_attributes.new(gaussian_mesh.ATTR_COLOR, "FLOAT_COLOR", "CORNER")
-    attribute.data.foreach_set("color", rgba.ravel())
+    rgba8 = native.core().splat_corner_colors(sh_dc.reshape(-1, 3), opacity, starts, counts, len(mesh.loops),
+                                              **color_adjustment.adjustment_of(obj.raysplats))
+    gaussian_mesh.write_corner_colors(mesh, rgba8)
     mesh.update()
     return True
 

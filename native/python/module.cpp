@@ -97,7 +97,7 @@ py::dict gaussians_to_polygons(const FloatArray& positions, const FloatArray& ro
     d["corner_edges"] = to_numpy(std::move(p.corner_edges), {corners});
     d["thickness"] = to_numpy(std::move(p.thickness), {n});
     d["sh_local"] = to_numpy(std::move(p.sh_local), {n, py::ssize_t(cloud.coeffs_per_channel()), 3});
-    d["corner_colors"] = to_numpy(std::move(p.corner_colors), {corners, 4});
+    d["corner_colors"] = to_numpy(std::move(p.corner_colors), {corners, 4});  // uint8: a byte colour attribute's
     d["corner_uvs"] = to_numpy(std::move(p.corner_uvs), {corners, 2});
     d["polygon_radius"] = to_numpy(std::move(p.polygon_radius), {n});
     d["opacity"] = to_numpy(std::move(p.opacity), {n});
@@ -173,6 +173,23 @@ py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const I
     return to_numpy(std::move(reversed), {faces});
 }
 
+py::array_t<float> polygon_radius_from_uvs(const FloatArray& corner_uvs, const IntArray& face_corner_start,
+                                           const IntArray& face_corner_count) {
+    raysplats::PolygonMeshView mesh;
+    mesh.corner_count = std::size_t(require_shape(corner_uvs, "corner_uvs", {kAnySize, 2}));
+    const py::ssize_t faces = require_shape(face_corner_start, "face_corner_start", {kAnySize});
+    require_shape(face_corner_count, "face_corner_count", {faces});
+    mesh.face_corner_start = face_corner_start.data();
+    mesh.face_corner_count = face_corner_count.data();
+    mesh.face_count = std::size_t(faces);
+    std::vector<float> radius;
+    {
+        py::gil_scoped_release release;
+        radius = raysplats::polygon_radius_from_uvs(mesh, corner_uvs.data());
+    }
+    return to_numpy(std::move(radius), {faces});
+}
+
 py::dict transform_gaussians(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
                              const FloatArray& opacities, const FloatArray& sh, const DoubleArray& matrix) {
     require_shape(matrix, "matrix", {4, 4});
@@ -235,6 +252,8 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
 void register_mesh_export(py::module_& m);
 // splat_tools_bindings.cpp
 void register_splat_tools(py::module_& m);
+// edit_mesh_bindings.cpp
+void register_edit_mesh(py::module_& m);
 
 PYBIND11_MODULE(_native, m) {
     m.doc() = "RaySplats native core: splat file I/O, the polygon bridge and mesh export (see DESIGN.md).";
@@ -282,6 +301,8 @@ PYBIND11_MODULE(_native, m) {
     m.def("faces_with_reversed_uvs", &faces_with_reversed_uvs, "corner_uvs"_a, "face_corner_start"_a,
           "face_corner_count"_a,
           "Per face 1.0 where its corner UVs wind clockwise (a reflection reversed its corners), else 0.0.");
+    m.def("polygon_radius_from_uvs", &polygon_radius_from_uvs, "corner_uvs"_a, "face_corner_start"_a,
+          "face_corner_count"_a, "Per face rho_i read from its polygon UVs (polygon_bridge.h), 0 where none is.");
     m.def("rows_that_differ", &rows_that_differ, "previous"_a, "current"_a,
           "Rows (ascending uint32) in which two float arrays of the same shape differ bit for bit.");
     m.def("faces_with_moved_vertices", &faces_with_moved_vertices, "previous_positions"_a, "vertex_positions"_a,
@@ -311,4 +332,5 @@ PYBIND11_MODULE(_native, m) {
     register_render_bindings(m);
     register_mesh_export(m);
     register_splat_tools(m);
+    register_edit_mesh(m);
 }

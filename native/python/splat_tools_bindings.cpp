@@ -154,7 +154,7 @@ void register_splat_tools(py::module_& m) {
         if (opacity) require_shape(*opacity, "opacity", {faces});
         require_shape(face_corner_start, "face_corner_start", {faces});
         require_shape(face_corner_count, "face_corner_count", {faces});
-        std::vector<float> rgba(4 * corner_count, 0.0f);
+        std::vector<std::uint8_t> rgba(4 * corner_count, 0);
         {
             py::gil_scoped_release release;
             raysplats::splat_corner_colors(adjustment_of(exposure, brightness, saturation, hue, temperature),
@@ -164,5 +164,12 @@ void register_splat_tools(py::module_& m) {
         return to_numpy(std::move(rgba), {py::ssize_t(corner_count), 4});
     }, "sh_dc"_a, "opacity"_a, "face_corner_start"_a, "face_corner_count"_a, "corner_count"_a, "exposure"_a = 0.0,
        "brightness"_a = 0.0, "saturation"_a = 1.0, "hue"_a = 0.0, "temperature"_a = 0.0,
-       "The splat colour attribute per corner (linear RGB of the adjusted SH DC, A = opacity), (corner_count, 4).");
+       "The splat colour attribute per corner, (corner_count, 4) uint8: sRGB bytes of the adjusted SH DC, A = opacity "
+       "(a byte colour attribute's bytes).");
+    m.def("srgb8_to_linear", [](const py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>& rgba8) {
+        const py::ssize_t n = require_shape(rgba8, "rgba8", {kAnySize, 4});
+        std::vector<float> out(4 * std::size_t(n));
+        raysplats::byte_colors_to_linear(rgba8.data(), std::size_t(n), out.data());
+        return to_numpy(std::move(out), {n, 4});
+    }, "rgba8"_a, "Byte colours (N, 4) uint8, sRGB RGB and linear A, as linear floats (what Blender's .color gives).");
 }

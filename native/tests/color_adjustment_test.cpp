@@ -72,15 +72,20 @@ TEST(ColorAdjustment, CornerColoursOfTheIdentityAreTheImportsAndFillEveryCorner)
     const float dc[6] = {0.0f, 10.0f, -10.0f, 1.0f, 1.0f, 1.0f};
     const float opacity[2] = {0.25f, 0.75f};
     const std::int32_t starts[2] = {0, 3}, counts[2] = {3, 2};
-    std::vector<float> rgba(4 * 5, -1.0f);
+    std::vector<std::uint8_t> rgba(4 * 5, 7);
     splat_corner_colors({}, dc, opacity, 2, starts, counts, 5, rgba.data());
-    EXPECT_NEAR(rgba[0], std::pow((0.5 + 0.055) / 1.055, 2.4), 1e-6);  // display 0.5 decoded from sRGB
-    EXPECT_EQ(rgba[1], 1.0f);   // clamped white
-    EXPECT_EQ(rgba[2], 0.0f);   // clamped black
-    EXPECT_EQ(rgba[3], 0.25f);
-    EXPECT_EQ(rgba[4 * 2 + 3], 0.25f);
-    EXPECT_EQ(rgba[4 * 4 + 3], 0.75f);
-    std::vector<float> darker(4 * 5);
+    EXPECT_EQ(rgba[0], 128);    // display 0.5 as an sRGB byte (Blender shows it linear)
+    EXPECT_EQ(rgba[1], 255);    // clamped white
+    EXPECT_EQ(rgba[2], 0);      // clamped black
+    EXPECT_EQ(rgba[3], 64);     // opacity 0.25 x 255, rounded
+    EXPECT_EQ(rgba[4 * 2 + 3], 64);
+    EXPECT_EQ(rgba[4 * 4 + 3], 191);
+    std::vector<float> linear(4 * 5);
+    byte_colors_to_linear(rgba.data(), 5, linear.data());
+    EXPECT_NEAR(linear[0], std::pow((128 / 255.0 + 0.055) / 1.055, 2.4), 1e-6);
+    EXPECT_EQ(linear[1], 1.0f);
+    EXPECT_NEAR(linear[3], 64 / 255.0, 1e-7);
+    std::vector<std::uint8_t> darker(4 * 5);
     splat_corner_colors({-1.0, 0, 1, 0, 0}, dc, opacity, 2, starts, counts, 5, darker.data());
     EXPECT_LT(darker[4 * 3], rgba[4 * 3]);
     const std::int32_t bad_starts[2] = {0, 4};

@@ -125,9 +125,10 @@ TEST(PolygonBridge, PolygonVerticesLieOnTheirVisibleRadiusEllipse) {
             const float* uv = &p.corner_uvs[2 * (8 * i + k)];
             EXPECT_NEAR(std::hypot(uv[0], uv[1]), rho_i, 1e-6);
             EXPECT_NEAR(std::atan2(uv[1], uv[0]), std::remainder(2 * M_PI * k / 8, 2 * M_PI), 1e-6);
-            const float alpha = p.corner_colors[4 * (8 * i + k) + 3];
-            EXPECT_EQ(alpha, c.opacities[i]);
-            const double rim = alpha * std::exp(-0.5 * (double(uv[0]) * uv[0] + double(uv[1]) * uv[1]));
+            // (The colour's alpha is a byte: the opacity to 1/510.)
+            const double alpha = p.corner_colors[4 * (8 * i + k) + 3] / 255.0;
+            EXPECT_NEAR(alpha, c.opacities[i], 0.5 / 255 + 1e-9);
+            const double rim = c.opacities[i] * std::exp(-0.5 * (double(uv[0]) * uv[0] + double(uv[1]) * uv[1]));
             EXPECT_NEAR(rim, std::max(1.0 / 255, c.opacities[i] * std::exp(-4.5)), 1e-8);
         }
     }
@@ -155,6 +156,48 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
                 << "K=" << k << " face " << i;
             for (int a = 0; a < 3; ++a) EXPECT_NEAR(r.positions[3 * i + a], c.positions[3 * i + a], 1e-6);
         }
+    }
+}
+
+// Imports store no thickness (issue 17): recovery takes each face's from its rest scales, so an edited face (here every
+// face, moved) comes back exactly as with the thickness stored; without rest scales either, the polygon is flat.
+TEST(PolygonBridge, RecoveryWithoutThicknessTakesItFromTheRestScales) {
+    GaussianCloud c = random_cloud(100, 0, 77);
+    PolygonSettings settings{4, 3.0f};
+    SplatPolygons p = gaussians_to_polygons(c, settings);
+    for (float& v : p.vertex_positions) v += 0.25f;
+    SplatFaceAttributesView attr = attributes_view(p);
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    const GaussianCloud stored = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+    EXPECT_EQ(stats.recovered, 100u);
+    attr.thickness = nullptr;
+    const GaussianCloud recomputed = recover_gaussians_from_polygons(mesh_view(p), attr, options);
+    EXPECT_EQ(recomputed.scales, stored.scales);
+    EXPECT_EQ(recomputed.rotations, stored.rotations);
+    attr.rest_scales = nullptr;
+    const GaussianCloud flat = recover_gaussians_from_polygons(mesh_view(p), attr, options);
+    EXPECT_NE(flat.scales, stored.scales);
+}
+
+// The per-face radius comes back from the polygon UVs bit for bit (imports keep no radius attribute), for every K, also
+// with a face's corners reversed (a reflection); a face without such a corner gives 0 (the object's rho).
+TEST(PolygonBridge, PolygonRadiusComesBackFromTheUvsExactly) {
+    for (int k : {3, 4, 8, 17}) {
+        GaussianCloud c = random_cloud(300, 0, 40 + k);
+        for (std::size_t i = 0; i < c.size(); ++i) c.opacities[i] = 0.01f + 0.99f * float(i) / float(c.size());
+        const SplatPolygons p = gaussians_to_polygons(c, {k, 3.0f});
+        std::vector<float> uvs = p.corner_uvs;
+        // Face 0's corners reversed, face 1's UVs zero (a face the user drew).
+        for (int a = 0; a < k / 2; ++a)
+            for (int b = 0; b < 2; ++b) std::swap(uvs[2 * a + b], uvs[2 * (k - 1 - a) + b]);
+        for (int a = 0; a < 2 * k; ++a) uvs[2 * k + a] = 0.0f;
+        const std::vector<float> radius = polygon_radius_from_uvs(mesh_view(p), uvs.data());
+        ASSERT_EQ(radius.size(), p.polygon_radius.size());
+        EXPECT_EQ(radius[0], p.polygon_radius[0]);
+        EXPECT_EQ(radius[1], 0.0f);
+        for (std::size_t f = 2; f < radius.size(); ++f) EXPECT_EQ(radius[f], p.polygon_radius[f]) << "K=" << k;
     }
 }
 
@@ -338,7 +381,8 @@ TEST(PolygonBridge, InvisibleGaussiansGetNoFaceAndAreCounted) {
         for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_centers[3 * f + k], c.positions[3 * i + k]);
         for (int k = 0; k < 4; ++k) EXPECT_EQ(p.rest_rotations[4 * f + k], c.rotations[4 * i + k]);
         for (int k = 0; k < 3; ++k) EXPECT_EQ(p.rest_scales[3 * f + k], c.scales[3 * i + k]);
-        EXPECT_EQ(p.corner_colors[4 * 6 * f + 3], c.opacities[i]);
+        EXPECT_EQ(p.corner_colors[4 * 6 * f + 3], std::uint8_t(c.opacities[i] * 255.0 + 0.5));
+        EXPECT_EQ(p.thickness[f], gaussian_thickness(&c.scales[3 * i]));
         // The face's polygon is the one gaussian_polygon() makes at rho_i, bit for bit.
         float polygon[3 * 6];
         gaussian_polygon(&c.positions[3 * i], &c.rotations[4 * i], &c.scales[3 * i], {6, p.polygon_radius[f]}, polygon);

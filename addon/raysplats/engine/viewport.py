@@ -46,6 +46,7 @@ class ViewportState:
         self.sync = None
         self.dirty = True
         self.key = None           # what `job` renders: image size, view and settings; None: start again
+        self.view = None          # the view drawn last: (key, preview camera, preview width, height)
         self.job = None           # the newest render; older ones are cancelled and end in `retiring`
         self.job_is_preview = False
         self.retiring = []
@@ -158,12 +159,23 @@ def view_update(engine, context, depsgraph):
         state.dirty = True
     elif change == "updated":
         last_draw["updates"] = last_draw.get("updates", 0) + 1
+        if state.view is not None:
+            # The edited scene's first image is rendered now, on the job's thread, while Blender finishes the edit on
+            # the UI thread (an Edit Mode move of a few splats of showroom_1.5M: its undo step alone, a copy of the
+            # whole mesh, takes longer than the preview); the next redraw finds it ready, the view being unchanged.
+            _start_preview(engine, state, depsgraph.scene, *state.view)
 
 
-def _start_job(engine, state, scene, context, width, height, samples, seed_offset=0):
+def _start_preview(engine, state, scene, key, preview_camera, preview_width, preview_height):
+    """The first image of a view: one sample at a quarter of the resolution (PREVIEW_DIVISOR)."""
+    state.key, state.job_is_preview, state.samples = key, True, 0
+    _start_job(engine, state, scene, preview_camera, preview_width, preview_height, 1)
+
+
+def _start_job(engine, state, scene, camera, width, height, samples, seed_offset=0):
     settings = sync.render_settings(scene, width, height, samples, seed_offset=seed_offset)
     settings["compositing"] = "STOCHASTIC"  # no sorting: the cheapest sample, refined by the passes
-    state.job = native.core().RenderJob(state.sync.render_scene, view_camera(context, width, height), settings,
+    state.job = native.core().RenderJob(state.sync.render_scene, camera, settings,
                                         max_threads=RENDER_THREADS, below_normal_priority=True)
     state.shown_samples = 0
     _start_polling(engine, state)
@@ -210,9 +222,9 @@ def view_draw(engine, context, depsgraph):
     if key != state.key:
         _retire(state)
         # The old image stays on screen until the new one comes, counted as no samples of the new view.
-        state.key, state.job_is_preview, state.samples = key, True, 0
         preview_width, preview_height = max(1, width // PREVIEW_DIVISOR), max(1, height // PREVIEW_DIVISOR)
-        _start_job(engine, state, scene, context, preview_width, preview_height, 1)
+        state.view = (key, view_camera(context, preview_width, preview_height), preview_width, preview_height)
+        _start_preview(engine, state, scene, *state.view)
     elif state.retiring:
         _retire(state)
 
@@ -231,7 +243,7 @@ def view_draw(engine, context, depsgraph):
     if state.job is None and state.job_is_preview:
         # The preview has ended: the full image, in sample passes (seeds after the preview's).
         state.job_is_preview = False
-        _start_job(engine, state, scene, context, width, height, scene.raysplats.viewport_samples, seed_offset=1)
+        _start_job(engine, state, scene, camera, width, height, scene.raysplats.viewport_samples, seed_offset=1)
     if state.texture is not None:
         draw_image(engine, scene, state.texture, region)
 

@@ -41,12 +41,17 @@ AffineColorMap color_adjustment_map(const ColorAdjustment& adjustment);  // thro
 // Multi-threaded.
 void apply_color_adjustment(const ColorAdjustment& adjustment, int sh_degree, float* sh, std::size_t count);
 
-// The colour attribute of a splat mesh (gaussian_mesh.py's "gs_color"): per corner the linear RGB of the adjusted SH DC
-// colour (clamped to [0, 1], then decoded from sRGB) and A = the face's opacity. sh_dc and opacity per face; corners
-// of face f are [face_corner_start[f], + face_corner_count[f]) in out_rgba (4 floats per corner, corner_count of them;
-// corners of no face are left as they are). Throws InvalidArgument for corners outside corner_count.
+// The colour attribute of a splat mesh (gaussian_mesh.py's "gs_color", a byte colour attribute): per corner the sRGB
+// bytes of the adjusted SH DC colour (clamped to [0, 1]; Blender gives them to shaders as linear RGB) and A = the face's
+// opacity x 255, rounded. sh_dc and opacity per face; corners of face f are [face_corner_start[f], +
+// face_corner_count[f]) in out_rgba (4 bytes per corner, corner_count of them; corners of no face are left as they
+// are). Throws InvalidArgument for corners outside corner_count.
 void splat_corner_colors(const ColorAdjustment& adjustment, const float* sh_dc, const float* opacity,
                          std::size_t face_count, const std::int32_t* face_corner_start,
-                         const std::int32_t* face_corner_count, std::size_t corner_count, float* out_rgba);
+                         const std::int32_t* face_corner_count, std::size_t corner_count, std::uint8_t* out_rgba);
+
+// Byte colours as Blender reads them (its `.color`): `count` RGBA byte quadruples, sRGB RGB and linear A, to linear
+// floats (4 per colour).
+void byte_colors_to_linear(const std::uint8_t* rgba8, std::size_t count, float* out_rgba);
 
 }  // namespace raysplats

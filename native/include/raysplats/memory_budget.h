@@ -7,10 +7,11 @@
 namespace raysplats {
 
 // Peak bytes of importing `count` Gaussians of SH degree `sh_degree` as polygons of `vertices_per_polygon`
-// corners: the cloud read from the file, the polygon arrays made from it (polygon_bridge.h: SplatPolygons), and
-// the host application's mesh filled from them counted twice (Blender's mesh plus the copy its undo step keeps).
-// An estimate from the array sizes: 2.25 GB for showroom_1.5M.ply (1.5 M Gaussians, degree 0, octagons), whose
-// import grew Blender 3.4's peak resident memory by 1.95 GB (background mode, so without an undo copy).
+// corners: the larger of the cloud read from the file (twice: the core copies it) with the polygon arrays made from it
+// (polygon_bridge.h: SplatPolygons), and those arrays with the host application's mesh filled from them; plus the
+// mesh once more (the copy Blender's undo step keeps). An estimate from the array sizes: 1.17 GB for showroom_1.5M.ply
+// (1.5 M Gaussians, degree 0) as quadrilaterals, the Auto default, 2.03 GB as octagons; examples/
+// benchmark_import_memory.py measures the real peak (blender_tests/test_import_memory.py keeps it under this).
 std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertices_per_polygon);
 
 // Peak bytes of importing `count` Gaussians as a compact splat object (one point per Gaussian with its attributes,

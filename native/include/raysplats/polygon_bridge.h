@@ -54,10 +54,12 @@ struct SplatPolygons {
     std::vector<std::int32_t> face_corner_count;  // per face (= K)
     std::vector<std::int32_t> edge_vertices;   // 2 per edge, K edges per face
     std::vector<std::int32_t> corner_edges;    // one per corner: edge from this corner to the next
-    std::vector<float> thickness;              // per face: s3 / sqrt(s1 s2), s sorted descending
+    std::vector<float> thickness;              // per face: gaussian_thickness of its scales
     int sh_degree = 0;                         // of sh_local (the cloud's)
     std::vector<float> sh_local;               // per face, [k][rgb], SH in the face's local frame
-    std::vector<float> corner_colors;          // 4 per corner: linear RGB of the SH DC colour, A = opacity
+    // 4 bytes per corner, a byte colour attribute: the SH DC colour's sRGB bytes (linear RGB to 8 bits where read as
+    // Blender does), A = opacity x 255 rounded.
+    std::vector<std::uint8_t> corner_colors;
     std::vector<float> corner_uvs;             // 2 per corner: (rho_i cos θ_k, rho_i sin θ_k)
     // The face's own Gaussian, as SplatFaceAttributesView reads it back (the cloud's rows of the faces' Gaussians).
     std::vector<float> polygon_radius;         // per face: rho_i = visible_polygon_radius(opacity, rho)
@@ -69,6 +71,10 @@ struct SplatPolygons {
 };
 
 SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSettings& settings);
+
+// The thickness a face keeps of its Gaussian (which its flat polygon drops): s3 / sqrt(s1 s2) of the scales sorted
+// descending, 0 for a degenerate plane.
+float gaussian_thickness(const float scales[3]);
 
 // The K polygon vertices of one Gaussian (float32, as stored in Blender) at radius settings.radius (pass rho_i).
 // Recovery regenerates polygons the same way to recognise unedited faces bit for bit.
@@ -98,6 +104,8 @@ PolygonMeshView mesh_view(const SplatPolygons& polygons);
 // of polygons made by gaussians_to_polygons.
 struct SplatFaceAttributesView {
     const float* opacity = nullptr;          // F
+    // Null: each face's gaussian_thickness(rest_scales) (0 without rest scales): Blender imports since issue 17 store
+    // no thickness, since it follows from the rest scales every imported face carries.
     const float* thickness = nullptr;        // F
     // rho_i of each face: recovery divides by it. A value that is not a positive finite number (0 is what Blender
     // gives faces the user adds), or no array (files from before per-face radii), means RecoveryOptions' rho.
@@ -152,6 +160,12 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
 // counter-clockwise) wind clockwise, i.e. whose corners a reflection reversed; else 0. Faces with fewer than 3
 // corners or corners outside `corner_count` get 0. Multi-threaded.
 std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
+
+// rho_i of each face read back from its polygon UVs: gaussians_to_polygons puts the corner at angle 0 at exactly
+// (rho_i, 0), so it is the u of the face's corner whose v is 0 and u positive (bit for bit what was stored); 0, which
+// means RecoveryOptions' rho, where no corner is. Blender imports since issue 17 keep no per-face radius attribute: the
+// UV map, which the material needs anyway, holds it. Multi-threaded.
+std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
 
 // The faces (ascending) with a corner on a vertex whose position differs, bit for bit, from previous_positions
 // (3 floats per vertex, mesh.vertex_count of them: the same mesh before an edit that kept its topology).

@@ -88,7 +88,7 @@ void apply_color_adjustment(const ColorAdjustment& adjustment, int sh_degree, fl
 
 void splat_corner_colors(const ColorAdjustment& adjustment, const float* sh_dc, const float* opacity,
                          std::size_t face_count, const std::int32_t* face_corner_start,
-                         const std::int32_t* face_corner_count, std::size_t corner_count, float* out_rgba) {
+                         const std::int32_t* face_corner_count, std::size_t corner_count, std::uint8_t* out_rgba) {
     for (std::size_t f = 0; f < face_count; ++f) {
         const std::int64_t start = face_corner_start[f], n = face_corner_count[f];
         if (start < 0 || n < 0 || std::size_t(start + n) > corner_count)
@@ -103,18 +103,23 @@ void splat_corner_colors(const ColorAdjustment& adjustment, const float* sh_dc, 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, face_count, kGrain), [&](const auto& range) {
         for (std::size_t f = range.begin(); f != range.end(); ++f) {
             const float* dc = &sh_dc[3 * f];
-            float rgba[4];
+            std::uint8_t rgba[4];
             for (int c = 0; c < 3; ++c) {
                 // Unadjusted, exactly the import's colours (gaussians_to_polygons' corner colours).
                 const float adjusted = identity ? dc[c]
                     : float(m[3 * c] * dc[0] + m[3 * c + 1] * dc[1] + m[3 * c + 2] * dc[2] + offset[c]);
-                rgba[c] = sh_dc_to_linear_unit(adjusted);
+                rgba[c] = sh_dc_to_srgb_byte(adjusted);
             }
-            rgba[3] = opacity ? opacity[f] : 1.0f;
+            rgba[3] = opacity ? unit_to_byte(opacity[f]) : 255;
             for (std::int64_t k = 0; k < face_corner_count[f]; ++k)
                 for (int c = 0; c < 4; ++c) out_rgba[4 * std::size_t(face_corner_start[f] + k) + c] = rgba[c];
         }
     });
+}
+
+void byte_colors_to_linear(const std::uint8_t* rgba8, std::size_t count, float* out_rgba) {
+    for (std::size_t i = 0; i < 4 * count; ++i)
+        out_rgba[i] = (i % 4 == 3) ? rgba8[i] / 255.0f : srgb_to_linear(rgba8[i] / 255.0f);
 }
 
 }  // namespace raysplats

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 
 #include "raysplats/spherical_harmonics.h"
 
@@ -60,5 +61,13 @@ inline float sh_dc_to_display_single(float f_dc) { return 0.5f + float(kShC0) * 
 // Linear colour channel of a Gaussian's degree-0 SH term for mesh colour attributes: the display value clamped to
 // [0, 1] (DESIGN §4) and decoded.
 inline float sh_dc_to_linear_unit(double f_dc) { return srgb_to_linear_clamped(float(sh_dc_to_display(f_dc))); }
+
+// A value in [0, 1] as a byte, rounded (clamped first; NaN gives 0), as 8-bit colours store it.
+inline std::uint8_t unit_to_byte(double v) { return v > 0.0 ? (v < 1.0 ? std::uint8_t(v * 255.0 + 0.5) : 255) : 0; }
+
+// The sRGB byte of a Gaussian's degree-0 SH term for byte colour attributes (Blender stores byte colours sRGB-encoded
+// and gives them to shaders and Python as linear, srgb_to_linear(byte / 255), the sh_dc_to_linear_unit of the float
+// attribute they replaced to 8-bit precision): the display value clamped to [0, 1].
+inline std::uint8_t sh_dc_to_srgb_byte(double f_dc) { return unit_to_byte(sh_dc_to_display(f_dc)); }
 
 }  // namespace raysplats

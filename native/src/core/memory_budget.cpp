@@ -14,13 +14,19 @@ std::uint64_t import_memory_bytes(std::uint64_t count, int sh_degree, int vertic
     const std::uint64_t coeffs = std::uint64_t(sh_coeff_count(std::min(std::max(sh_degree, 0), 3)));
     // GaussianCloud: position 3, rotation 4, scale 3, opacity 1, SH 3 per coefficient (floats).
     const std::uint64_t cloud = 4 * (11 + 3 * coeffs);
-    // SplatPolygons per Gaussian: K vertices (3 floats), K corners (vertex, edge: 2 ints; colour 4 and uv 2 floats),
-    // K edges (2 ints), face start and count (2 ints), thickness (1 float), local SH (3 floats per coefficient).
-    const std::uint64_t polygons = k * (12 + 8 + 16 + 8 + 8) + 8 + 4 + 12 * coeffs;
-    // The host's mesh: the same geometry and corner attributes, plus per-face attributes (opacity, thickness, rest
-    // centre 3, rotation 4, scale 3 floats; SH 3 per coefficient) and per-element flags.
-    const std::uint64_t mesh = polygons + 4 * (1 + 3 + 4 + 3) + 2 * k + 4;
-    return count * (cloud + polygons + 2 * mesh);
+    // SplatPolygons per Gaussian: K vertices (3 floats), K corners (vertex, edge: 2 ints; colour 4 bytes, uv 2 floats),
+    // K edges (2 ints); per face start, count, thickness, radius, opacity, rest centre 3, rotation 4, scale 3 (4 bytes
+    // each) and the local SH (3 floats per coefficient).
+    const std::uint64_t polygons = k * (12 + 8 + 4 + 8 + 8) + 4 * 15 + 12 * coeffs;
+    // Blender's mesh (the larger layout, 3.4's structs: vertex 16, edge 12, corner 8, face 12 bytes; 3.6 and newer
+    // store 12, 8, 8 and 4): per corner also the byte colour (4) and the UV (3.4's MLoopUV 12, later 8); per face
+    // opacity, rest centre 3, rotation 4, scale 3 (floats) and the SH (3 floats per coefficient). No selection layers,
+    // no thickness (recomputed from the rest scales), no radius (the UV map holds it).
+    const std::uint64_t mesh = k * (16 + 12 + 8 + 4 + 12) + 12 + 4 * 11 + 12 * coeffs;
+    // The peak is the larger of making the polygons (the file's cloud, the core's copy of it and the polygons) and
+    // filling the mesh (the polygon arrays are freed as Blender copies them: at most all of both), plus the copy of the
+    // mesh an undo step keeps (the GUI; none in background mode).
+    return count * (std::max(2 * cloud + polygons, polygons + mesh) + mesh);
 }
 
 std::uint64_t compact_import_memory_bytes(std::uint64_t count, int sh_degree) {

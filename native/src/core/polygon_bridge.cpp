@@ -22,9 +22,17 @@ using la::Vec3;
 constexpr double kTwoPi = 6.283185307179586;
 constexpr std::size_t kGrain = 4096;
 
-// Blender's linear colour attribute of a Gaussian's SH DC term: the display colour clamped to [0, 1] and decoded.
-// (std::max clamps a NaN coefficient to 0, where sh_dc_to_linear_unit of the mesh exporters keeps the NaN.)
-float corner_color(float f_dc) { return srgb_to_linear(std::min(1.0f, std::max(0.0f, float(sh_dc_to_display(f_dc))))); }
+
+}  // namespace
+
+float gaussian_thickness(const float scales[3]) {
+    float sorted[3] = {scales[0], scales[1], scales[2]};
+    std::sort(sorted, sorted + 3, [](float a, float b) { return a > b; });
+    const double plane = std::sqrt(double(sorted[0]) * sorted[1]);
+    return plane > 0 ? float(sorted[2] / plane) : 0.0f;
+}
+
+namespace {
 
 Mat3 rotation_of(const float q[4]) {
     double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -307,11 +315,7 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
                 out.corner_uvs[2 * c] = float(double(rho) * angles.cos[k]);
                 out.corner_uvs[2 * c + 1] = float(double(rho) * angles.sin[k]);
             }
-            const float* s = &cloud.scales[3 * i];
-            float sorted[3] = {s[0], s[1], s[2]};
-            std::sort(sorted, sorted + 3, [](float a, float b) { return a > b; });
-            const double plane = std::sqrt(double(sorted[0]) * sorted[1]);
-            out.thickness[f] = plane > 0 ? float(sorted[2] / plane) : 0.0f;
+            out.thickness[f] = gaussian_thickness(&cloud.scales[3 * i]);
             out.polygon_radius[f] = rho;
             out.opacity[f] = cloud.opacities[i];
             std::memcpy(&out.rest_centers[3 * f], &cloud.positions[3 * i], 3 * sizeof(float));
@@ -331,7 +335,8 @@ SplatPolygons gaussians_to_polygons(const GaussianCloud& cloud, const PolygonSet
             } else {
                 std::memcpy(local, sh, sizeof(float) * 3);
             }
-            const float rgba[4] = {corner_color(sh[0]), corner_color(sh[1]), corner_color(sh[2]), cloud.opacities[i]};
+            const std::uint8_t rgba[4] = {sh_dc_to_srgb_byte(sh[0]), sh_dc_to_srgb_byte(sh[1]), sh_dc_to_srgb_byte(sh[2]),
+                                          unit_to_byte(cloud.opacities[i])};
             for (int k = 0; k < kc; ++k) std::memcpy(&out.corner_colors[4 * (std::size_t(base) + k)], rgba, sizeof(rgba));
         }
     });
@@ -436,7 +441,9 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             // Without rest attributes every face is taken as a Gaussian; with them, zero rest scales (the value
             // Blender gives new faces) mark a face the user added.
             const bool is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
-            const double thickness = (attr.thickness && !is_added) ? attr.thickness[f] : 0.0;
+            // The stored thickness, else (imports since issue 17 store none) the one of the face's rest scales.
+            const double thickness = is_added ? 0.0
+                : attr.thickness ? double(attr.thickness[f]) : rest_s ? double(gaussian_thickness(rest_s)) : 0.0;
             // The face's own rho_i (DESIGN §5); the object's rho where the face has none (0: added by the user).
             float rho = options.polygon.radius;
             if (attr.polygon_radius && attr.polygon_radius[f] > 0.0f && std::isfinite(attr.polygon_radius[f]))
@@ -619,6 +626,24 @@ std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const fl
         }
     });
     return reversed;
+}
+
+std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs) {
+    std::vector<float> radius(mesh.face_count, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.face_count, kGrain), [&](const auto& range) {
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+            const std::int64_t start = mesh.face_corner_start[f], count = mesh.face_corner_count[f];
+            if (count < 1 || start < 0 || std::size_t(start + count) > mesh.corner_count) continue;
+            for (std::int64_t k = 0; k < count; ++k) {
+                const float* uv = &corner_uvs[2 * std::size_t(start + k)];
+                if (uv[1] == 0.0f && uv[0] > 0.0f && std::isfinite(uv[0])) {
+                    radius[f] = uv[0];
+                    break;
+                }
+            }
+        }
+    });
+    return radius;
 }
 
 }  // namespace raysplats

@@ -1,0 +1,108 @@
+# Where the memory of an import goes (issue 17): Blender's resident memory empty (add-on registered, core loaded), its
+# peak during an import with the default settings and after the depsgraph has evaluated the object (the evaluated
+# copy), the bytes per Gaussian above the empty Blender, every layer of the imported mesh (vertices, edges, corners,
+# faces, each attribute), and the .blend's size (saved uncompressed, Blender's default) against the splat file's.
+#   blender -b --factory-startup --python examples/benchmark_import_memory.py -- [FILE] [--k K] [--max-count N]
+#   ~/.cache/raysplats/bpy45-venv/bin/python examples/benchmark_import_memory.py -- [FILE]     (PyPI bpy)
+# FILE defaults to showroom_1.5M.ply. Targets: at most 700 bytes per Gaussian above the empty Blender, .blend at most
+# 5x the .ply.
+import argparse
+import os
+import sys
+import tempfile
+import time
+
+import bpy
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+parser = argparse.ArgumentParser()
+parser.add_argument("file", nargs="?", default=os.path.join(HERE, "..", "..", "shared", "data", "showroom_1.5M.ply"))
+parser.add_argument("--k", type=int, default=None, help="Polygon Vertices (default: the operator's default)")
+parser.add_argument("--max-count", type=int, default=0)
+parser.add_argument("--work", default=tempfile.gettempdir(), help="folder for the .blend")
+parser.add_argument("--addon-dir", default=os.path.join(HERE, "..", "addon"),
+                    help="the folder holding the raysplats package (default: this repository's)")
+args = parser.parse_args(argv)
+
+sys.path.insert(0, args.addon_dir)
+import raysplats  # noqa: E402
+
+raysplats.register()
+from raysplats import mesh_memory, native  # noqa: E402
+
+native.core()  # the core's libraries count as the empty Blender
+
+
+def status_kb(field):
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def reset_peak():
+    """Resets VmHWM to the current RSS (Linux 4.0+); False where that is not allowed."""
+    try:
+        with open("/proc/self/clear_refs", "w") as clear_refs:
+            clear_refs.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def mb(n):
+    return f"{n / 1e6:8.1f} MB"
+
+
+context = bpy.context
+empty = status_kb("VmRSS") * 1024
+peak_reset = reset_peak()
+t = time.perf_counter()
+options = {"filepath": args.file, "max_count": args.max_count}
+if args.k is not None:
+    options["vertices_per_polygon"] = args.k
+bpy.ops.import_scene.gaussian_splats(**options)
+seconds = time.perf_counter() - t
+import_peak = status_kb("VmHWM") * 1024
+after_import = status_kb("VmRSS") * 1024
+obj = context.view_layer.objects.active
+mesh = obj.data
+count = len(mesh.polygons)
+context.view_layer.update()
+context.evaluated_depsgraph_get()
+evaluated_peak = status_kb("VmHWM") * 1024
+after_evaluation = status_kb("VmRSS") * 1024
+
+blend = os.path.join(args.work, "raysplats_import_memory.blend")
+bpy.ops.wm.save_as_mainfile(filepath=blend, compress=False, copy=True)
+blend_size, ply_size = os.path.getsize(blend), os.path.getsize(args.file)
+os.remove(blend)
+
+print(f"\nRaySplats import memory: {os.path.basename(args.file)}, {count:,} Gaussians as "
+      f"{obj.raysplats.vertices_per_polygon}-gons, Blender {bpy.app.version_string} "
+      f"({bpy.app.binary_path or 'PyPI bpy'}), import {seconds:.1f} s")
+if not peak_reset:
+    print("  (VmHWM could not be reset: the peaks below are the process's since it started)")
+print(f"  empty Blender (add-on, core)  {mb(empty)}")
+print(f"  peak during import            {mb(import_peak)}   {(import_peak - empty) / count:7.0f} B/Gaussian "
+      "above empty")
+print(f"  after import                  {mb(after_import)}   {(after_import - empty) / count:7.0f} B/Gaussian")
+print(f"  peak with the evaluated copy  {mb(evaluated_peak)}   {(evaluated_peak - empty) / count:7.0f} B/Gaussian")
+print(f"  after evaluation              {mb(after_evaluation)}   {(after_evaluation - empty) / count:7.0f} B/Gaussian")
+sizes = mesh_memory.layer_sizes(mesh)
+total = sum(size for _, size in sizes.values())
+print(f"  mesh layers ({len(mesh.vertices):,} vertices, {len(mesh.edges):,} edges, {len(mesh.loops):,} corners, "
+      f"{count:,} faces):")
+for name, (domain, size) in sorted(sizes.items(), key=lambda item: -item[1][1]):
+    print(f"    {name:<22} {domain:<7} {mb(size)}   {size / count:6.1f} B/Gaussian")
+print(f"    {'total':<22} {'':<7} {mb(total)}   {total / count:6.1f} B/Gaussian")
+print(f"  .blend {mb(blend_size)} / .ply {mb(ply_size)} = {blend_size / ply_size:.2f}x")
+print(f"  targets: <= 700 B/Gaussian above empty (peak during import: {(import_peak - empty) / count:.0f}), "
+      f".blend <= 5x the .ply ({blend_size / ply_size:.2f}x)", flush=True)
+raysplats.unregister()
+if not os.path.basename(bpy.app.binary_path).startswith("blender"):
+    # Blender as a Python module (PyPI bpy) can hang in its exit handlers after a big scene; nothing is left to do.
+    sys.stdout.flush()
+    os._exit(0)
