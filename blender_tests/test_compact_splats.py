@@ -115,33 +115,59 @@ class CompactImport(unittest.TestCase):
             io_import.check_import_memory(Machine(), st.data_file(SCENE), 8, 0, "POLYGONS")
 
 
+def shown(obj):
+    """The Gaussians compact object `obj` shows (renders, exports), in object space."""
+    return compact_splats.object_cloud(obj)
+
+
 class RegionEditing(unittest.TestCase):
     def setUp(self):
         st.reset_scene()
         self.obj = import_points()
         self.original = native_splats.read_native_splats(self.obj.data)
         self.mask = self.original["positions"][:, 0] > 0.5
+        self.visible = self.mask & compact_splats.visible_gaussians(self.original["opacities"])
+
+    def assert_cloud_equal(self, got, expected):
+        for key in KEYS:
+            np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
 
     def test_a_region_becomes_polygons_and_merges_back_unchanged(self):
+        data = self.obj.data
         region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
-        visible = self.mask & (self.original["opacities"] * 255 > 1)  # invisible Gaussians get no polygon
-        self.assertEqual(len(region.data.polygons), int(visible.sum()))
-        self.assertEqual(compact_splats.point_count(self.obj.data), int((~self.mask).sum()))
+        self.assertEqual(len(region.data.polygons), int(self.visible.sum()))
+        # The points stay where they are, marked as the region's: the compact data is not rebuilt.
+        self.assertIs(self.obj.data, data)
+        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))
+        self.assertEqual(compact_splats.gaussian_count(self.obj.data), int((~self.visible).sum()))
+        hidden = np.zeros(len(self.mask), dtype=bool)
+        self.obj.data.vertices.foreach_get("hide", hidden)
+        np.testing.assert_array_equal(hidden, self.visible)  # Edit Mode does not show the points out in the region
         bpy.context.view_layer.update()
         self.assertEqual(region.matrix_world, self.obj.matrix_world)  # the same place, to the last bit
         self.assertIs(compact_splats.region_target(region), self.obj)
 
         merged = compact_splats.merge_region_back(bpy.context, region)
-        self.assertEqual(merged, int(visible.sum()))
+        self.assertEqual(merged, int(self.visible.sum()))
         self.assertEqual([obj.name for obj in bpy.data.objects], [self.obj.name])  # the region object is gone
-        cloud = native_splats.read_native_splats(self.obj.data)
-        rest = int((~self.mask).sum())
-        for key in KEYS:  # the points outside the region are untouched, in order
-            np.testing.assert_array_equal(cloud[key][:rest], self.original[key][~self.mask], err_msg=key)
-        # The region's Gaussians come back as they went (unedited polygons return their stored values).
-        np.testing.assert_allclose(cloud["positions"][rest:], self.original["positions"][visible], atol=1e-6)
-        np.testing.assert_allclose(cloud["scales"][rest:], self.original["scales"][visible], rtol=1e-5, atol=1e-7)
-        np.testing.assert_allclose(cloud["opacities"][rest:], self.original["opacities"][visible], atol=1e-6)
+        self.assertIs(self.obj.data, data)
+        self.assertEqual(compact_splats.open_regions(self.obj), {})
+        # Every point back where it was, bit for bit (unedited polygons return their stored values).
+        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
+        self.assertFalse(compact_splats.region_marks(self.obj.data).any())
+        self.obj.data.vertices.foreach_get("hide", hidden)
+        self.assertFalse(hidden.any())
+
+    def test_taken_points_are_skipped_by_render_and_export(self):
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        rest = {key: self.original[key][~self.visible] for key in KEYS}
+        self.assert_cloud_equal(shown(self.obj), rest)
+        scene_sync = sync.SceneSync(bpy.context.evaluated_depsgraph_get())
+        self.assertEqual(scene_sync.stats.splats, len(self.mask))  # the rest, and the region as polygons
+        self.assertEqual([count for _, count in scene_sync.compact.values()], [int((~self.visible).sum())])
+        # Export writes the rest once and the region once (as recovered from its polygons).
+        written = st.export_file("compact_region_out.ply", up_axis="Z")
+        self.assertEqual(len(written["opacities"]), len(self.mask))
 
     def test_a_moved_region_merges_back_where_it_is_seen(self):
         region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
@@ -149,15 +175,125 @@ class RegionEditing(unittest.TestCase):
         bpy.context.view_layer.update()
         compact_splats.merge_region_back(bpy.context, region)
         cloud = native_splats.read_native_splats(self.obj.data)
-        visible = self.mask & (self.original["opacities"] * 255 > 1)
-        rest = int((~self.mask).sum())
-        expected = self.original["positions"][visible] + np.array([2.0, 0.0, 0.0], dtype=np.float32)
-        np.testing.assert_allclose(cloud["positions"][rest:], expected, atol=1e-5)
+        self.assertEqual(len(cloud["opacities"]), len(self.mask))  # in place: no point added or removed
+        expected = self.original["positions"][self.visible] + np.array([2.0, 0.0, 0.0], dtype=np.float32)
+        np.testing.assert_allclose(cloud["positions"][self.visible], expected, atol=1e-5)
+        for key in KEYS:  # the points outside the region are untouched
+            np.testing.assert_array_equal(cloud[key][~self.visible], self.original[key][~self.visible], err_msg=key)
+
+    def _edit_region_faces(self, region, operation):
+        bpy.context.view_layer.objects.active = region
+        bpy.ops.object.mode_set(mode="EDIT")
+        bpy.ops.mesh.select_mode(type="FACE")
+        bpy.ops.mesh.select_all(action="DESELECT")
+        bpy.ops.object.mode_set(mode="OBJECT")
+        selection = np.zeros(len(region.data.polygons), dtype=bool)
+        selection[:10] = True
+        region.data.polygons.foreach_set("select", selection)
+        bpy.ops.object.mode_set(mode="EDIT")
+        operation()
+        bpy.ops.object.mode_set(mode="OBJECT")
+
+    def test_deleted_faces_remove_their_points_and_duplicates_are_added(self):
+        rows = np.flatnonzero(self.visible)
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        self._edit_region_faces(region, lambda: bpy.ops.mesh.delete(type="FACE"))
+        compact_splats.merge_region_back(bpy.context, region)
+        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))  # removed in place
+        keep = np.ones(len(self.mask), dtype=bool)
+        keep[rows[:10]] = False
+        self.assert_cloud_equal(shown(self.obj), {key: self.original[key][keep] for key in KEYS})
+        written = st.export_file("compact_region_deleted.ply")
+        self.assertEqual(len(written["opacities"]), int(keep.sum()))
+
+        # A second region that duplicates 10 faces: they first fill the 10 points removed, nothing is appended.
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        self._edit_region_faces(region, lambda: bpy.ops.mesh.duplicate())
+        compact_splats.merge_region_back(bpy.context, region)
+        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))
+        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask))
+        got = shown(self.obj)
+        self.assert_cloud_equal({key: got[key][keep] for key in KEYS}, {key: self.original[key][keep] for key in KEYS})
+        # The duplicates are copies of the region's first 10 (which were rows[10:20] of the original).
+        np.testing.assert_array_equal(np.sort(got["opacities"][~keep]), np.sort(self.original["opacities"][rows[10:20]]))
+
+        # A third duplicates 10 again: nothing free, so 10 points are appended.
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        self._edit_region_faces(region, lambda: bpy.ops.mesh.duplicate())
+        compact_splats.merge_region_back(bpy.context, region)
+        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask) + 10)
+        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask) + 10)
+
+    def test_taking_a_small_region_does_not_rebuild_the_compact_data(self):
+        data, count = self.obj.data, len(self.mask)
+        small = np.zeros(count, dtype=bool)
+        small[np.flatnonzero(compact_splats.visible_gaussians(self.original["opacities"]))[:50]] = True
+        views = []
+        real = compact_splats._PointViews
+
+        def recording(data):
+            views.append(real(data))
+            return views[-1]
+
+        with mock.patch.object(compact_splats.native_splats, "new_native_splat_data",
+                               side_effect=AssertionError("rebuilt")), \
+                mock.patch.object(compact_splats.native_splats, "read_native_splats",
+                                  side_effect=AssertionError("read whole")), \
+                mock.patch.object(compact_splats, "_PointViews", side_effect=recording):
+            region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, small)
+            self.assertIs(self.obj.data, data)
+            self.assertEqual(compact_splats.point_count(data), count)
+            compact_splats.merge_region_back(bpy.context, region)
+        self.assertIs(self.obj.data, data)
+        self.assertEqual(compact_splats.point_count(data), count)
+        # The values were read and written in Blender's arrays in place, not as whole copies.
+        self.assertTrue(views)
+        self.assertEqual([view.copies for view in views], [[]] * len(views))
+        self.assert_cloud_equal(native_splats.read_native_splats(data), self.original)
 
     def test_nothing_selected_is_a_clear_error_and_changes_nothing(self):
         with self.assertRaisesRegex(ValueError, "no splats selected"):
             compact_splats.edit_region_as_polygons(bpy.context, self.obj, np.zeros_like(self.mask))
         self.assertEqual(compact_splats.point_count(self.obj.data), len(self.original["opacities"]))
+
+    def test_points_out_in_a_region_are_not_taken_again(self):
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        with self.assertRaisesRegex(ValueError, "out in a region already"):
+            compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.visible)
+        other, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, np.ones_like(self.mask))
+        self.assertEqual(len(other.data.polygons),
+                         int((compact_splats.visible_gaussians(self.original["opacities"]) & ~self.mask).sum()))
+        compact_splats.merge_region_back(bpy.context, other)
+        compact_splats.merge_region_back(bpy.context, region)
+        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
+
+    def test_a_deleted_region_is_listed_and_restored(self):
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region_id = region[compact_splats.REGION_ID_PROPERTY]
+        self.assertEqual(compact_splats.orphaned_regions(self.obj), [])
+        bpy.data.objects.remove(region)
+        self.assertEqual(compact_splats.orphaned_regions(self.obj), [region_id])
+        bpy.context.view_layer.objects.active = self.obj
+        self.assertEqual(bpy.ops.object.raysplats_restore_regions(), {"FINISHED"})
+        self.assertEqual(compact_splats.orphaned_regions(self.obj), [])
+        self.assert_cloud_equal(shown(self.obj), self.original)
+
+    def test_a_region_survives_save_and_reload(self):
+        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region.location.z += 1.0
+        name, region_name = self.obj.name, region.name
+        path = st.tmp_file("compact_region_open.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+        bpy.ops.wm.open_mainfile(filepath=path)
+        obj, region = bpy.data.objects[name], bpy.data.objects[region_name]
+        self.assertEqual(compact_splats.gaussian_count(obj.data), int((~self.visible).sum()))
+        self.assertEqual(compact_splats.orphaned_regions(obj), [])
+        compact_splats.merge_region_back(bpy.context, region)
+        cloud = native_splats.read_native_splats(obj.data)
+        self.assertEqual(len(cloud["opacities"]), len(self.mask))
+        self.assertEqual(compact_splats.gaussian_count(obj.data), len(self.mask))
+        for key in KEYS:
+            np.testing.assert_array_equal(cloud[key][~self.visible], self.original[key][~self.visible], err_msg=key)
 
     def test_the_operators_use_the_edit_mode_selection(self):
         bpy.context.view_layer.objects.active = self.obj
@@ -167,11 +303,14 @@ class RegionEditing(unittest.TestCase):
         self.assertEqual(bpy.ops.object.raysplats_edit_region(), {"FINISHED"})
         region = bpy.context.view_layer.objects.active
         self.assertEqual(region.get(compact_splats.REGION_OF_PROPERTY), self.obj.name)
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask) - 100)
+        self.assertEqual(region.raysplats.vertices_per_polygon, compact_splats.REGION_VERTICES_PER_POLYGON)
+        visible = int(compact_splats.visible_gaussians(self.original["opacities"][:100]).sum())
+        self.assertEqual(len(region.data.polygons), visible)
+        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask) - visible)
         self.assertEqual(bpy.ops.object.raysplats_merge_region(), {"FINISHED"})
         self.assertIs(bpy.context.view_layer.objects.active, self.obj)
-        invisible = int(np.sum(self.original["opacities"][:100] * 255 <= 1))
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask) - invisible)
+        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask))
+        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
 
 
 class Rendering(unittest.TestCase):

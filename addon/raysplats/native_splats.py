@@ -167,8 +167,11 @@ def convert_from_native_splats(context, obj, vertices_per_polygon=8, radius=3.0,
     """Our Gaussian object made from a Blender splat object `obj` (evaluated: geometry nodes applied), in the same
     place. Its export up axis is the one the splats came from (see UP_AXIS_PROPERTY), else -Y, the axis of the
     COLMAP-trained .ply scenes Blender's importer reads most. Returns the new object."""
+    from .compact_splats import object_cloud  # (it imports this module)
     data = obj.evaluated_get(context.evaluated_depsgraph_get()).data
-    cloud = read_native_splats(data)
+    cloud = object_cloud(obj, data)  # the Gaussians it shows: not those out in a region being edited
+    if cloud is None:
+        raise ValueError(f"'{obj.name}' has no Gaussians to convert")
     up_axis = obj.get(UP_AXIS_PROPERTY, "-Y")
     if up_axis not in {item[0] for item in axes.UP_AXIS_ITEMS}:
         up_axis = "-Y"

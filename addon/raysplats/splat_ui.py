@@ -14,6 +14,16 @@ def _draw_compact_settings(layout, obj):
     column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as compact points")
     column.label(text=f"Up axis in the file: {obj.get(native_splats.UP_AXIS_PROPERTY, '-Y')}")
     layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
+    # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
+    # deleted without merging keeps them out until restored.
+    for region_id, name in compact_splats.open_regions(obj).items():
+        region = compact_splats.region_object(obj, region_id)
+        if region is not None:
+            layout.label(text=f"Out in '{region.name}' (Merge Back returns them)", icon="MESH_DATA")
+        else:
+            layout.label(text=f"Region '{name}' was deleted: its Gaussians are left out", icon="ERROR")
+    if compact_splats.orphaned_regions(obj):
+        layout.operator(compact_splats.OBJECT_OT_raysplats_restore_regions.bl_idname, icon="LOOP_BACK")
     if obj.mode != "EDIT":
         layout.label(text="Select a region's points in Edit Mode first", icon="INFO")
 
