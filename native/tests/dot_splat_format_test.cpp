@@ -127,6 +127,24 @@ TEST(DotSplatFormat, NonFinitePositionDropped) {
     EXPECT_EQ(report.warnings.size(), 2u);
 }
 
+// A .splat whose first float begins with gzip's two bytes 1f 8b (about 1 in 65,536 files: the low bytes of the first
+// position's x) was refused as corrupt SPZ gzip; a .splat name takes SPZ only for a full SPZ signature.
+TEST(DotSplatFormat, GzipMagicByChanceIsStillASplat) {
+    auto b = read_bytes(data_path("small.splat"));
+    b.resize(32 * 3);
+    b[0] = 0x1f, b[1] = 0x8b;  // x of splat 0 changes in its low mantissa bits only
+    const std::string path = tmp_path("gzip_by_chance.splat");
+    write_bytes(path, b);
+    EXPECT_EQ(read_splat_file(path).size(), 3u);
+    const SplatFileSummary s = probe_splat_file(path);
+    EXPECT_EQ(s.format, SplatFormat::Splat);
+    EXPECT_EQ(s.count, 3u);
+    // The same bytes under another name are SPZ by content, and refused as such.
+    const std::string spz = tmp_path("gzip_by_chance.spz");
+    write_bytes(spz, b);
+    expect_format_error([&] { read_splat_file(spz); }, "gzip_by_chance.spz", {"gzip"});
+}
+
 TEST(DotSplatFormatErrors, SizeNotMultipleOf32) {
     auto b = read_bytes(data_path("small.splat"));
     b.resize(b.size() - 5);

@@ -86,8 +86,9 @@ void encode_rotation(const float* q_in, std::uint8_t* out) {
 
 }  // namespace
 
-GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    io::FileBytes f(path);
+namespace io {
+GaussianCloud read_dot_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    const std::string& path = f.path();
     if (f.size() == 0) throw FileFormatError(path, "file is empty");
     if (f.size() % kRecord != 0)
         throw FileFormatError(path, "size " + std::to_string(f.size()) + " bytes is not a multiple of the 32-byte .splat record (" +
@@ -109,6 +110,11 @@ GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options
     });
     io::finalize_cloud(c, options, report);
     return c;
+}
+}  // namespace io
+
+GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    return io::read_dot_splat(io::FileBytes(path), options, report);
 }
 
 void write_dot_splat(const std::string& path, const GaussianCloud& cloud) {
