@@ -138,6 +138,8 @@ struct RecoveryStats {
     // faces whose stored rest rotation is not a rotation (NaN, Inf or zero, e.g. written by a script): their
     // Gaussian is recovered from the polygon instead (also counted in `recovered`)
     std::size_t invalid_rest_rotation = 0;
+    // faces whose stored rest scales are not scales (negative, NaN or Inf): recovered from the polygon likewise
+    std::size_t invalid_rest_scale = 0;
 };
 
 // Recovers one Gaussian per face (in face order, dropped faces left out) in the output space of
