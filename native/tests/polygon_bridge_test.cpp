@@ -306,6 +306,35 @@ TEST(PolygonBridge, NegativeRestScaleIsRecoveredNotExported) {
                                   planar_covariance(&c.rotations[0], magnitudes)), 1e-4);
 }
 
+// Found by fuzzing: a face whose Gaussian overflows float32 (a corner 5e18 away and a stored polygon radius of 2e-38,
+// so a scale near 1e56) was exported with an infinite scale. It is dropped and counted instead.
+TEST(PolygonBridge, GaussianBeyondFloatRangeIsDroppedNotExported) {
+    const float positions[] = {0, 0, 0, 1, 0, -4.8e18f, 0, 0, 0, 0, 1, 0,   // face 0: far out
+                               0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};          // face 1: a unit square
+    const std::int32_t corners[] = {0, 1, 2, 3, 4, 5, 6, 7}, starts[] = {0, 4}, counts[] = {4, 4};
+    PolygonMeshView mesh;
+    mesh.vertex_positions = positions, mesh.vertex_count = 8;
+    mesh.corner_vertices = corners, mesh.corner_count = 8;
+    mesh.face_corner_start = starts, mesh.face_corner_count = counts, mesh.face_count = 2;
+    const float radius[] = {2.35e-38f, 0.0f};  // 0: the object's rho
+    SplatFaceAttributesView attr;
+    attr.polygon_radius = radius;
+    RecoveryOptions options;
+    options.polygon = PolygonSettings{4, 2.5f};
+    RecoveryStats stats;
+    GaussianCloud out = recover_gaussians_from_polygons(mesh, attr, options, &stats);
+    EXPECT_EQ(stats.dropped, 1u);
+    EXPECT_EQ(stats.recovered, 1u);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_NO_THROW(out.check_values("recovered"));
+    EXPECT_NEAR(out.positions[0], 0.5f, 1e-6);  // the unit square's Gaussian is what is left
+    attr.polygon_radius = nullptr;  // at the object's rho the far face's scales (~1e18) fit
+    out = recover_gaussians_from_polygons(mesh, attr, options, &stats);
+    EXPECT_EQ(stats.dropped, 0u);
+    EXPECT_EQ(stats.recovered, 2u);
+    EXPECT_NO_THROW(out.check_values("recovered"));
+}
+
 TEST(PolygonBridge, SubsetRecoveryEqualsTheFullRecoveryOfEditedFaces) {
     GaussianCloud c = random_cloud(300, 3, 31);
     PolygonSettings settings{8, 3.0f};

@@ -505,6 +505,20 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
                 for (int k = 0; k < 4; ++k) out_rot[k] = float(q[k]);
                 for (int k = 0; k < 3; ++k) out_scale[k] = float(g.s[k]);
             }
+            // A Gaussian that does not fit float32 (corners far out, a tiny polygon_radius, a transform that scales
+            // them up: the double result overflows) is dropped and counted like a face with non-finite corners,
+            // never exported as Inf or NaN.
+            bool fits = true;
+            for (int k = 0; k < 3; ++k) fits = fits && std::isfinite(out_pos[k]) && std::isfinite(out_scale[k]);
+            for (int k = 0; k < 4; ++k) fits = fits && std::isfinite(out_rot[k]);
+            if (!fits) {
+                keep[o] = 0;
+                ++n_dropped;
+                if (exact_rest) --n_unedited;  // counted above as what it would have been
+                else if (is_added) --n_added;
+                else --n_recovered;
+                continue;
+            }
 
             float op = is_added ? kNewFaceOpacity : (attr.opacity ? attr.opacity[f] : kNewFaceOpacity);
             cloud.opacities[o] = std::isfinite(op) ? std::min(1.0f, std::max(0.0f, op)) : 0.0f;
