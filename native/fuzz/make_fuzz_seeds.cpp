@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "../tests/sog_test_util.h"
@@ -31,10 +32,24 @@ Bytes read_file(const std::string& path) {
     return Bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
-void put(const std::string& target, const std::string& name, const Bytes& bytes) {
+void write_seed(const std::string& target, const std::string& name, const Bytes& bytes) {
     fs::create_directories(g_out + "/" + target);
     std::ofstream out(g_out + "/" + target + "/" + name, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+}
+
+// A reader's seed, and the same file for fuzz_splat_bytes (the dispatch), whose first byte picks the file name there
+// (fuzz_splat_bytes.cpp's kNames: 0 .ply, 1 .splat, 2 .spz, 3 .sog, 4 .glb, 6 .compressed.ply).
+void put(const std::string& target, const std::string& name, const Bytes& bytes) {
+    write_seed(target, name, bytes);
+    const std::pair<const char*, std::uint8_t> names[] = {{"ply", 0},  {"dot_splat", 1}, {"spz", 2},
+                                                          {"sog", 3},  {"gltf", 4},      {"compressed_ply", 6}};
+    for (const auto& [reader, index] : names)
+        if (target == reader && bytes.size() < (std::size_t(1) << 20)) {
+            Bytes prefixed{index};
+            prefixed.insert(prefixed.end(), bytes.begin(), bytes.end());
+            write_seed("splat_bytes", target + "_" + name, prefixed);
+        }
 }
 void put(const std::string& target, const std::string& name, const std::string& text) { put(target, name, Bytes(text.begin(), text.end())); }
 
