@@ -12,6 +12,8 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev assimp-utils
   xvfb xauth libgl1-mesa-dri
   patchelf binutils
+  # clang and libFuzzer: the fuzz targets (scripts/fuzz.sh, ctest fuzz.smoke)
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -242,7 +242,8 @@ py::dict recover_gaussians(const FloatArray& vertex_positions, const IntArray& c
     py::dict d = cloud_to_dict(std::move(cloud));
     d["stats"] = py::dict("unedited"_a = stats.unedited, "recovered"_a = stats.recovered, "added"_a = stats.added,
                           "degenerate"_a = stats.degenerate, "dropped"_a = stats.dropped,
-                          "invalid_rest_rotation"_a = stats.invalid_rest_rotation);
+                          "invalid_rest_rotation"_a = stats.invalid_rest_rotation,
+                          "invalid_rest_scale"_a = stats.invalid_rest_scale);
     return d;
 }
 

@@ -127,6 +127,47 @@ TEST(DotSplatFormat, NonFinitePositionDropped) {
     EXPECT_EQ(report.warnings.size(), 2u);
 }
 
+// Found by fuzzing (native/fuzz/fuzz_dot_splat.cpp): a .splat stores linear scales, so a record may hold a negative
+// one; it was returned as stored and then refused by the core's own check (GaussianCloud::check_values).
+TEST(DotSplatFormat, NegativeScaleReadAsItsMagnitude) {
+    auto b = read_bytes(data_path("small.splat"));
+    b.resize(32 * 4);
+    float s;
+    std::memcpy(&s, &b[32 * 1 + 12 + 4], 4);  // scale y of splat 1
+    const float negative = -std::fabs(s);
+    std::memcpy(&b[32 * 1 + 12 + 4], &negative, 4);
+    const float negative_zero = -0.0f;  // the sign of a zero is no negative scale
+    std::memcpy(&b[32 * 2 + 12], &negative_zero, 4);
+    const std::string path = tmp_path("negative_scale.splat");
+    write_bytes(path, b);
+    LoadReport report;
+    const GaussianCloud c = read_dot_splat(path, {}, &report);
+    ASSERT_EQ(c.size(), 4u);
+    EXPECT_EQ(c.scales[3 * 1 + 1], std::fabs(s));
+    EXPECT_EQ(report.negative_scale_repaired, 1u);
+    ASSERT_EQ(report.warnings.size(), 1u);
+    EXPECT_NE(report.warnings[0].find("negative scale"), std::string::npos);
+    EXPECT_NO_THROW(c.check_values("negative_scale.splat"));
+}
+
+// A .splat whose first float begins with gzip's two bytes 1f 8b (about 1 in 65,536 files: the low bytes of the first
+// position's x) was refused as corrupt SPZ gzip; a .splat name takes SPZ only for a full SPZ signature.
+TEST(DotSplatFormat, GzipMagicByChanceIsStillASplat) {
+    auto b = read_bytes(data_path("small.splat"));
+    b.resize(32 * 3);
+    b[0] = 0x1f, b[1] = 0x8b;  // x of splat 0 changes in its low mantissa bits only
+    const std::string path = tmp_path("gzip_by_chance.splat");
+    write_bytes(path, b);
+    EXPECT_EQ(read_splat_file(path).size(), 3u);
+    const SplatFileSummary s = probe_splat_file(path);
+    EXPECT_EQ(s.format, SplatFormat::Splat);
+    EXPECT_EQ(s.count, 3u);
+    // The same bytes under another name are SPZ by content, and refused as such.
+    const std::string spz = tmp_path("gzip_by_chance.spz");
+    write_bytes(spz, b);
+    expect_format_error([&] { read_splat_file(spz); }, "gzip_by_chance.spz", {"gzip"});
+}
+
 TEST(DotSplatFormatErrors, SizeNotMultipleOf32) {
     auto b = read_bytes(data_path("small.splat"));
     b.resize(b.size() - 5);

@@ -321,6 +321,63 @@ TEST(PolygonBridge, NonFiniteRestRotationIsRecoveredNotExported) {
 // The viewport's partial recovery: faces_with_moved_vertices finds exactly the faces an edit touched, and
 // recovering only them gives the same rows as a full recovery, bit for bit (SH degree 3 and an object transform,
 // so the moment recovery, the SH rotation and the unedited pass-through all run).
+// Found by fuzzing (native/fuzz/fuzz_polygon_bridge.cpp): a stored rest scale that is negative matched its face's
+// polygon exactly (the polygon of -s is that of s turned half a turn), so the negative scale was exported as stored
+// and the recovered cloud failed its own check. Such a face is recovered from its polygon, and counted.
+TEST(PolygonBridge, NegativeRestScaleIsRecoveredNotExported) {
+    GaussianCloud c = random_cloud(3, 1, 11);
+    c.scales[0] = -c.scales[0];  // Gaussian 0: the polygon and the rest scales made from a negative scale
+    const PolygonSettings settings{8, 3.0f};
+    const SplatPolygons p = gaussians_to_polygons(c, settings);
+    ASSERT_EQ(p.opacity.size(), 3u);
+    std::vector<float> rest_scales = p.rest_scales;
+    rest_scales[3 * 2 + 1] = std::numeric_limits<float>::quiet_NaN();  // Gaussian 2: a NaN rest scale
+    SplatFaceAttributesView attr = attributes_view(p);
+    attr.rest_scales = rest_scales.data();
+    RecoveryOptions options;
+    options.polygon = settings;
+    RecoveryStats stats;
+    const GaussianCloud out = recover_gaussians_from_polygons(mesh_view(p), attr, options, &stats);
+    ASSERT_EQ(out.size(), 3u);
+    EXPECT_EQ(stats.invalid_rest_scale, 2u);
+    EXPECT_EQ(stats.unedited, 1u);
+    EXPECT_EQ(stats.recovered, 2u);
+    EXPECT_NO_THROW(out.check_values("recovered"));
+    // Face 0's Gaussian from its polygon: the same covariance in the polygon's plane (a sign of a scale means nothing).
+    const float magnitudes[3] = {std::fabs(c.scales[0]), c.scales[1], c.scales[2]};
+    EXPECT_LT(relative_difference(planar_covariance(&out.rotations[0], &out.scales[0]),
+                                  planar_covariance(&c.rotations[0], magnitudes)), 1e-4);
+}
+
+// Found by fuzzing: a face whose Gaussian overflows float32 (a corner 5e18 away and a stored polygon radius of 2e-38,
+// so a scale near 1e56) was exported with an infinite scale. It is dropped and counted instead.
+TEST(PolygonBridge, GaussianBeyondFloatRangeIsDroppedNotExported) {
+    const float positions[] = {0, 0, 0, 1, 0, -4.8e18f, 0, 0, 0, 0, 1, 0,   // face 0: far out
+                               0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};          // face 1: a unit square
+    const std::int32_t corners[] = {0, 1, 2, 3, 4, 5, 6, 7}, starts[] = {0, 4}, counts[] = {4, 4};
+    PolygonMeshView mesh;
+    mesh.vertex_positions = positions, mesh.vertex_count = 8;
+    mesh.corner_vertices = corners, mesh.corner_count = 8;
+    mesh.face_corner_start = starts, mesh.face_corner_count = counts, mesh.face_count = 2;
+    const float radius[] = {2.35e-38f, 0.0f};  // 0: the object's rho
+    SplatFaceAttributesView attr;
+    attr.polygon_radius = radius;
+    RecoveryOptions options;
+    options.polygon = PolygonSettings{4, 2.5f};
+    RecoveryStats stats;
+    GaussianCloud out = recover_gaussians_from_polygons(mesh, attr, options, &stats);
+    EXPECT_EQ(stats.dropped, 1u);
+    EXPECT_EQ(stats.recovered, 1u);
+    ASSERT_EQ(out.size(), 1u);
+    EXPECT_NO_THROW(out.check_values("recovered"));
+    EXPECT_NEAR(out.positions[0], 0.5f, 1e-6);  // the unit square's Gaussian is what is left
+    attr.polygon_radius = nullptr;  // at the object's rho the far face's scales (~1e18) fit
+    out = recover_gaussians_from_polygons(mesh, attr, options, &stats);
+    EXPECT_EQ(stats.dropped, 0u);
+    EXPECT_EQ(stats.recovered, 2u);
+    EXPECT_NO_THROW(out.check_values("recovered"));
+}
+
 TEST(PolygonBridge, SubsetRecoveryEqualsTheFullRecoveryOfEditedFaces) {
     GaussianCloud c = random_cloud(300, 3, 31);
     PolygonSettings settings{8, 3.0f};

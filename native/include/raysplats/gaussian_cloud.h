@@ -50,6 +50,7 @@ struct LoadReport {
     std::size_t non_finite_dropped = 0;     // splats with NaN/Inf in position, scale or rotation
     std::size_t non_finite_repaired = 0;    // NaN/Inf in opacity or colour, set to 0
     std::size_t zero_rotation_repaired = 0; // zero quaternions replaced by the identity
+    std::size_t negative_scale_repaired = 0; // splats with a negative linear scale (.splat), read as its magnitude
     std::vector<std::string> warnings;      // human-readable lines, one per kind of problem
 };
 

@@ -142,10 +142,13 @@ struct RecoveryStats {
     std::size_t recovered = 0;    // faces recovered by moments
     std::size_t added = 0;        // faces without an imported Gaussian (default attributes)
     std::size_t degenerate = 0;   // collinear or coincident vertices: scales clamped
-    std::size_t dropped = 0;      // faces with non-finite vertices or fewer than 3 corners: not exported
+    std::size_t dropped = 0;      // faces with non-finite vertices or fewer than 3 corners, or whose Gaussian does
+                                  // not fit float32 (corners far out, a tiny polygon radius): not exported
     // faces whose stored rest rotation is not a rotation (NaN, Inf or zero, e.g. written by a script): their
     // Gaussian is recovered from the polygon instead (also counted in `recovered`)
     std::size_t invalid_rest_rotation = 0;
+    // faces whose stored rest scales are not scales (negative, NaN or Inf): recovered from the polygon likewise
+    std::size_t invalid_rest_scale = 0;
 };
 
 // Recovers one Gaussian per face (in face order, dropped faces left out) in the output space of

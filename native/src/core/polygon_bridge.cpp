@@ -403,10 +403,12 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
     GaussianCloud cloud;
     cloud.resize(nf, degree);
     std::vector<unsigned char> keep(nf, 1);
-    std::atomic<std::size_t> unedited{0}, recovered{0}, added{0}, degenerate{0}, dropped{0}, invalid_rest{0};
+    std::atomic<std::size_t> unedited{0}, recovered{0}, added{0}, degenerate{0}, dropped{0}, invalid_rest{0},
+        invalid_rest_scale{0};
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, kGrain), [&](const tbb::blocked_range<std::size_t>& range) {
-        std::size_t n_unedited = 0, n_recovered = 0, n_added = 0, n_degenerate = 0, n_dropped = 0, n_invalid_rest = 0;
+        std::size_t n_unedited = 0, n_recovered = 0, n_added = 0, n_degenerate = 0, n_dropped = 0, n_invalid_rest = 0,
+                    n_invalid_rest_scale = 0;
         Vec3 local[kMaxPolygonVertices > 256 ? kMaxPolygonVertices : 256];
         float rest_polygon[3 * kMaxPolygonVertices];
         std::vector<Vec3> big;  // faces with more than 256 corners (user-made n-gons)
@@ -460,7 +462,15 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
                 usable_rest_q = std::isfinite(n2) && n2 > 0;
                 if (!usable_rest_q && !is_added) ++n_invalid_rest;
             }
-            if (usable_rest_q && rest_s && !is_added && count == k_rest && attr.rest_centers) {
+            // Nor a rest scale that is no scale (negative, NaN, Inf): a face built from it matches its polygon exactly
+            // (the polygon of -s is that of s turned half a turn), and the scale would be exported as stored.
+            bool usable_rest_s = false;
+            if (rest_s && !is_added) {
+                usable_rest_s = true;
+                for (int k = 0; k < 3; ++k) usable_rest_s = usable_rest_s && rest_s[k] >= 0.0f && std::isfinite(rest_s[k]);
+                if (!usable_rest_s) ++n_invalid_rest_scale;
+            }
+            if (usable_rest_q && usable_rest_s && count == k_rest && attr.rest_centers) {
                 polygon_of_gaussian(&attr.rest_centers[3 * f], rest_q, &attr.rest_scales[3 * f], angles, rho,
                                     rest_polygon);
                 exact_rest = true;
@@ -502,6 +512,20 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
                 for (int k = 0; k < 4; ++k) out_rot[k] = float(q[k]);
                 for (int k = 0; k < 3; ++k) out_scale[k] = float(g.s[k]);
             }
+            // A Gaussian that does not fit float32 (corners far out, a tiny polygon_radius, a transform that scales
+            // them up: the double result overflows) is dropped and counted like a face with non-finite corners,
+            // never exported as Inf or NaN.
+            bool fits = true;
+            for (int k = 0; k < 3; ++k) fits = fits && std::isfinite(out_pos[k]) && std::isfinite(out_scale[k]);
+            for (int k = 0; k < 4; ++k) fits = fits && std::isfinite(out_rot[k]);
+            if (!fits) {
+                keep[o] = 0;
+                ++n_dropped;
+                if (exact_rest) --n_unedited;  // counted above as what it would have been
+                else if (is_added) --n_added;
+                else --n_recovered;
+                continue;
+            }
 
             float op = is_added ? kNewFaceOpacity : (attr.opacity ? attr.opacity[f] : kNewFaceOpacity);
             cloud.opacities[o] = std::isfinite(op) ? std::min(1.0f, std::max(0.0f, op)) : 0.0f;
@@ -536,7 +560,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             }
         }
         unedited += n_unedited, recovered += n_recovered, added += n_added, degenerate += n_degenerate,
-            dropped += n_dropped, invalid_rest += n_invalid_rest;
+            dropped += n_dropped, invalid_rest += n_invalid_rest, invalid_rest_scale += n_invalid_rest_scale;
     });
 
     if (dropped > 0) {  // compact: dropped faces are left out of the output
@@ -558,6 +582,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
         stats_out->unedited = unedited, stats_out->recovered = recovered, stats_out->added = added;
         stats_out->degenerate = degenerate, stats_out->dropped = dropped;
         stats_out->invalid_rest_rotation = invalid_rest;
+        stats_out->invalid_rest_scale = invalid_rest_scale;
     }
     return cloud;
 }

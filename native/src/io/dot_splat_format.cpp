@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 
@@ -86,8 +87,9 @@ void encode_rotation(const float* q_in, std::uint8_t* out) {
 
 }  // namespace
 
-GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    io::FileBytes f(path);
+namespace io {
+GaussianCloud read_dot_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    const std::string& path = f.path();
     if (f.size() == 0) throw FileFormatError(path, "file is empty");
     if (f.size() % kRecord != 0)
         throw FileFormatError(path, "size " + std::to_string(f.size()) + " bytes is not a multiple of the 32-byte .splat record (" +
@@ -97,18 +99,40 @@ GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options
     GaussianCloud c;
     c.resize(n, 0);
     const std::uint8_t* base = f.data();
+    // The format stores linear scales, so a sign is possible, and some writers leave one (a scale is the length of
+    // an axis: its sign means nothing, the covariance R diag(s)^2 R^T is the same). Read as its magnitude, counted:
+    // passed on as stored, the core's own check (GaussianCloud::check_values) refused the cloud later.
+    std::atomic<std::size_t> negative{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, io::kGrain), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::size_t local_negative = 0;
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const std::uint8_t* p = base + i * kRecord;
             for (int j = 0; j < 3; ++j) c.positions[3 * i + j] = load_f32le(p + 4 * j);
-            for (int j = 0; j < 3; ++j) c.scales[3 * i + j] = load_f32le(p + 12 + 4 * j);
+            bool any_negative = false;
+            for (int j = 0; j < 3; ++j) {
+                const float s = load_f32le(p + 12 + 4 * j);
+                any_negative |= s < 0.0f;
+                c.scales[3 * i + j] = std::fabs(s);
+            }
+            local_negative += any_negative;
             for (int j = 0; j < 3; ++j) c.sh[3 * i + j] = float(display_to_sh_dc(p[24 + j] / 255.0));
             c.opacities[i] = float(p[27] / 255.0);
             for (int j = 0; j < 4; ++j) c.rotations[4 * i + j] = float((p[28 + j] - 128.0) / 128.0);
         }
+        negative += local_negative;
     });
-    io::finalize_cloud(c, options, report);
+    io::finalize_cloud(c, options, report);  // resets the report
+    if (report && negative) {
+        report->negative_scale_repaired = negative;
+        report->warnings.push_back(std::to_string(negative.load()) +
+                                   " splat(s) with a negative scale: read as its magnitude");
+    }
     return c;
+}
+}  // namespace io
+
+GaussianCloud read_dot_splat(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    return io::read_dot_splat(io::FileBytes(path), options, report);
 }
 
 void write_dot_splat(const std::string& path, const GaussianCloud& cloud) {

@@ -554,8 +554,19 @@ std::string folder_of(const std::string& path) {
 
 }  // namespace
 
+// Bytes in memory have no folder: their buffers must be inside them (a .glb, data: URIs).
+tinygltf::Model load_model(const FileBytes& f) {
+    return f.in_memory() ? load_model(f.path(), f.data(), f.size(), "", false)
+                         : load_model(f.path(), f.data(), f.size(), folder_of(f.path()), true);
+}
+
+GaussianCloud read_gltf_splats(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    const tinygltf::Model model = load_model(f);
+    return read_model(f.path(), model, options, report);
+}
+
 SplatFileSummary probe_gltf(const FileBytes& f) {
-    const tinygltf::Model model = load_model(f.path(), f.data(), f.size(), folder_of(f.path()), true);
+    const tinygltf::Model model = load_model(f);
     LoadReport ignored;
     const SplatScene scene = collect(f.path(), model, &ignored);
     return {SplatFormat::Gltf, scene.placed, scene.degree};
@@ -578,15 +589,12 @@ GltfContents gltf_contents_of(const std::string& path) {
 }  // namespace io
 
 GaussianCloud read_gltf_splats(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    io::FileBytes f(path);
-    const tinygltf::Model model = io::load_model(path, f.data(), f.size(), io::folder_of(path), true);
-    return io::read_model(path, model, options, report);
+    return io::read_gltf_splats(io::FileBytes(path), options, report);
 }
 
 GaussianCloud read_gltf_splats_from_memory(const std::uint8_t* data, std::size_t size, const std::string& name,
                                            const ReadOptions& options, LoadReport* report) {
-    const tinygltf::Model model = io::load_model(name, data, size, "", false);
-    return io::read_model(name, model, options, report);
+    return io::read_gltf_splats(io::FileBytes(data, size, name), options, report);
 }
 
 GltfContents gltf_contents(const std::string& path) { return io::gltf_contents_of(path); }

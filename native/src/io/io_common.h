@@ -26,9 +26,14 @@ constexpr std::size_t kGrain = 8192;
 
 // Read-only view of a whole file: memory mapped where possible. Throws FileFormatError naming the file
 // if it cannot be opened or read. An empty file gives size() == 0 and data() == nullptr.
+// The second constructor views bytes the caller holds (not owned, not copied), with a name that stands for the file
+// in error messages: every format's reader takes a FileBytes, so reading a file and reading the same bytes from
+// memory run the same code and give the same errors (and the fuzz targets, native/fuzz, test what files get).
 class FileBytes {
 public:
     explicit FileBytes(const std::string& path);
+    FileBytes(const std::uint8_t* data, std::size_t size, const std::string& name)
+        : path_(name), data_(size ? data : nullptr), size_(size), in_memory_(true) {}
     ~FileBytes();
     FileBytes(const FileBytes&) = delete;
     FileBytes& operator=(const FileBytes&) = delete;
@@ -36,12 +41,16 @@ public:
     const std::uint8_t* data() const { return data_; }
     std::size_t size() const { return size_; }
     const std::string& path() const { return path_; }
+    // True for a view of memory: path() is only a name, so a reader must not look for files beside it (glTF's
+    // external buffers, SOG's unbundled images).
+    bool in_memory() const { return in_memory_; }
 
 private:
     std::string path_;
     const std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;
     bool mapped_ = false;
+    bool in_memory_ = false;
     std::vector<std::uint8_t> buffer_;  // used when mapping is not possible
 };
 
@@ -156,9 +165,36 @@ GaussianCloud read_compressed_ply_data(const std::uint8_t* data, std::size_t siz
                                        const PlyHeader& header, const ReadOptions& options, LoadReport* report);
 SplatFileSummary probe_compressed_ply(const std::uint8_t* data, std::size_t size, const std::string& path,
                                       const PlyHeader& header);
-SplatFileSummary probe_sog(const std::string& path);
+SplatFileSummary probe_sog(const FileBytes& f);
 // Whether a file is SOG (sog_format.cpp): zip magic in its first bytes, or a name ending in .sog or meta.json.
 bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size);
+bool is_zip(const std::uint8_t* data, std::size_t size);
+// Whether bytes are a gzip member whose content starts with SPZ's 'NGSP' magic (spz_format.cpp; inflates 4 bytes).
+bool gzip_holds_spz(const std::uint8_t* data, std::size_t size);
+
+// Each format's reader on a file's bytes (splat_io.h's path readers open a FileBytes and call these; read_splat_bytes
+// dispatches to them). Every error names f.path().
+GaussianCloud read_ply(const FileBytes& f, const ReadOptions& options, LoadReport* report);  // also compressed PLY
+GaussianCloud read_dot_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report);
+GaussianCloud read_spz(const FileBytes& f, const ReadOptions& options, LoadReport* report);
+GaussianCloud read_sog(const FileBytes& f, const ReadOptions& options, LoadReport* report);
+GaussianCloud read_gltf_splats(const FileBytes& f, const ReadOptions& options, LoadReport* report);
+
+// The format of a file's bytes: from its content first (PLY, SPZ (NGSP or gzip), zip (SOG), glTF magic), then from
+// its name (.gltf, .sog / meta.json, .splat). A name ending in .splat (headerless: any bytes can start a record) takes a
+// content format only for a full signature ('ply' and a line end, 'NGSP', gzip that inflates to 'NGSP', zip, glTF
+// binary version 2), since its first float can begin with any magic by chance (gzip's two bytes: 1 in 65,536).
+// Throws FileFormatError naming `name` for an empty file or an unknown format. A compressed PLY is SplatFormat::Ply
+// here (its header tells, read_ply hands it over).
+SplatFormat detect_splat_format(const std::uint8_t* data, std::size_t size, const std::string& name);
+// read_splat_file and probe_splat_file on bytes in memory (`name` stands for the file in errors and gives the format
+// when the content does not). Never opens a file: a .gltf with external buffers or an unbundled SOG meta.json is
+// refused (FileFormatError), they are read from their folder by the path readers.
+GaussianCloud read_splat_bytes(const std::uint8_t* data, std::size_t size, const std::string& name,
+                               const ReadOptions& options = {}, LoadReport* report = nullptr);
+SplatFileSummary probe_splat_bytes(const std::uint8_t* data, std::size_t size, const std::string& name);
+GaussianCloud read_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report);
+SplatFileSummary probe_splat(const FileBytes& f);
 
 // Throws InvalidArgument if the cloud's arrays disagree (checked by every writer before it opens a file).
 void check_writable(const GaussianCloud& cloud);

@@ -262,8 +262,9 @@ SplatFileSummary probe_ply(const FileBytes& f) {
 }
 }  // namespace io
 
-GaussianCloud read_ply(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    io::FileBytes f(path);
+namespace io {
+GaussianCloud read_ply(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    const std::string& path = f.path();
     const PlyHeader h = io::parse_ply_header(f);
     if (io::is_compressed_ply(h)) return io::read_compressed_ply_data(f.data(), f.size(), path, h, options, report);
     std::size_t vi = h.elements.size();
@@ -351,6 +352,11 @@ GaussianCloud read_ply(const std::string& path, const ReadOptions& options, Load
     }
     io::finalize_cloud(cloud, options, report);
     return cloud;
+}
+}  // namespace io
+
+GaussianCloud read_ply(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    return io::read_ply(io::FileBytes(path), options, report);
 }
 
 void write_ply(const std::string& path, const GaussianCloud& cloud) {

@@ -752,17 +752,17 @@ GaussianCloud read_scene(SogFiles& files, const ReadOptions& options, LoadReport
     return c;
 }
 
-bool is_zip(const std::uint8_t* d, std::size_t size) { return size >= 4 && std::memcmp(d, "PK\x03\x04", 4) == 0; }
+using io::is_zip;
 
 // Runs `body` on the scene's files: a bundle for zip content, else a meta.json with the images beside it.
 template <typename Body>
-auto with_sog_files(const std::string& path, Body body) {
-    const io::FileBytes f(path);
+auto with_sog_files(const io::FileBytes& f, Body body) {
+    const std::string& path = f.path();
     if (is_zip(f.data(), f.size())) {
         ZipBundle bundle(f.data(), f.size(), path);
         return body(static_cast<SogFiles&>(bundle));
     }
-    if (io::lower_extension(path) == ".sog")
+    if (io::lower_extension(path) == ".sog" || f.in_memory())
         throw FileFormatError(path, "not a SOG bundle: a .sog is a zip archive (no 'PK' zip magic)", 0);
     Folder folder(path);
     return body(static_cast<SogFiles&>(folder));
@@ -771,6 +771,8 @@ auto with_sog_files(const std::string& path, Body body) {
 }  // namespace
 
 namespace io {
+bool is_zip(const std::uint8_t* d, std::size_t size) { return size >= 4 && std::memcmp(d, "PK\x03\x04", 4) == 0; }
+
 bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size) {
     if (is_zip(head, head_size)) return true;
     const std::string e = lower_extension(path);
@@ -780,8 +782,8 @@ bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t 
     return lower.size() >= 9 && lower.compare(lower.size() - 9, 9, "meta.json") == 0;
 }
 
-SplatFileSummary probe_sog(const std::string& path) {
-    return with_sog_files(path, [](SogFiles& files) {
+SplatFileSummary probe_sog(const FileBytes& f) {
+    return with_sog_files(f, [](SogFiles& files) {
         const SogMeta m = read_meta(files);
         SplatFileSummary s{SplatFormat::Sog, m.count, 0};
         if (!m.has_shn) return s;
@@ -799,17 +801,19 @@ SplatFileSummary probe_sog(const std::string& path) {
         return s;
     });
 }
+
+GaussianCloud read_sog(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    return with_sog_files(f, [&](SogFiles& files) { return read_scene(files, options, report); });
+}
 }  // namespace io
 
 GaussianCloud read_sog(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    return with_sog_files(path, [&](SogFiles& files) { return read_scene(files, options, report); });
+    return io::read_sog(io::FileBytes(path), options, report);
 }
 
 GaussianCloud read_sog_bundle(const std::uint8_t* data, std::size_t size, const std::string& name, const ReadOptions& options,
                               LoadReport* report) {
-    if (!is_zip(data, size)) throw FileFormatError(name, "not a SOG bundle: a .sog is a zip archive (no 'PK' zip magic)", 0);
-    ZipBundle bundle(data, size, name);
-    return read_scene(bundle, options, report);
+    return io::read_sog(io::FileBytes(data, size, name), options, report);
 }
 
 }  // namespace raysplats

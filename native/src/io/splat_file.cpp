@@ -258,42 +258,77 @@ std::string lower_extension(const std::string& path) {
 // -------------------------------------------------------------------------------------------------------------
 // Public dispatch
 
-GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    std::uint8_t head[4] = {0, 0, 0, 0};
-    std::size_t got = 0;
-    {
-        io::FileBytes probe(path);  // maps lazily: cheap, and gives the uniform "cannot open" errors
-        if (probe.size() == 0) throw FileFormatError(path, "file is empty");
-        got = std::min<std::size_t>(4, probe.size());
-        std::memcpy(head, probe.data(), got);
-    }
-    if (got >= 3 && std::memcmp(head, "ply", 3) == 0) return read_ply(path, options, report);
-    if (got >= 4 && std::memcmp(head, "NGSP", 4) == 0) return read_spz(path, options, report);
-    if (got >= 2 && head[0] == 0x1f && head[1] == 0x8b) return read_spz(path, options, report);
-    if (io::is_sog_file(path, head, got)) return read_sog(path, options, report);
-    const std::string e = io::lower_extension(path);
-    if ((got >= 4 && std::memcmp(head, "glTF", 4) == 0) || e == ".gltf") return read_gltf_splats(path, options, report);
-    if (e == ".splat") return read_dot_splat(path, options, report);
+namespace io {
+
+namespace {
+bool starts_with(const std::uint8_t* d, std::size_t size, const char* magic, std::size_t n) {
+    return size >= n && std::memcmp(d, magic, n) == 0;
+}
+}  // namespace
+
+SplatFormat detect_splat_format(const std::uint8_t* d, std::size_t size, const std::string& name) {
+    if (size == 0) throw FileFormatError(name, "file is empty");
+    const std::string e = lower_extension(name);
+    // A .splat has no header: its first bytes are a float that may spell any magic. Only a full signature counts.
+    const bool headerless = e == ".splat";
+    const bool ply = headerless ? starts_with(d, size, "ply\n", 4) || starts_with(d, size, "ply\r", 4) : starts_with(d, size, "ply", 3);
+    if (ply) return SplatFormat::Ply;
+    if (starts_with(d, size, "NGSP", 4)) return SplatFormat::Spz;
+    if (size >= 2 && d[0] == 0x1f && d[1] == 0x8b && (!headerless || gzip_holds_spz(d, size))) return SplatFormat::Spz;
+    if (is_zip(d, size)) return SplatFormat::Sog;
+    const bool glb = headerless ? starts_with(d, size, "glTF", 4) && size >= 8 && load_u32le(d + 4) == 2
+                                : starts_with(d, size, "glTF", 4);
+    if (glb || e == ".gltf") return SplatFormat::Gltf;
+    if (is_sog_file(name, nullptr, 0)) return SplatFormat::Sog;
+    if (headerless) return SplatFormat::Splat;
     if (e == ".ply" || e == ".spz")
-        throw FileFormatError(path, "not a " + e.substr(1) + " file: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
-    throw FileFormatError(path,
-                          "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic) and extension '" +
-                              e + "' is not .splat",
+        throw FileFormatError(name, "not a " + e.substr(1) + " file: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
+    throw FileFormatError(name,
+                          "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic) and extension '" + e +
+                              "' is not .splat",
                           0);
 }
 
-SplatFileSummary probe_splat_file(const std::string& path) {
-    io::FileBytes f(path);
-    if (f.size() == 0) throw FileFormatError(path, "file is empty");
-    const std::uint8_t* d = f.data();
-    if (f.size() >= 3 && std::memcmp(d, "ply", 3) == 0) return io::probe_ply(f);
-    if ((f.size() >= 4 && std::memcmp(d, "NGSP", 4) == 0) || (f.size() >= 2 && d[0] == 0x1f && d[1] == 0x8b))
-        return io::probe_spz(f);
-    if ((f.size() >= 4 && std::memcmp(d, "glTF", 4) == 0) || io::lower_extension(path) == ".gltf") return io::probe_gltf(f);
-    if (io::is_sog_file(path, d, f.size())) return io::probe_sog(path);
-    if (io::lower_extension(path) == ".splat") return {SplatFormat::Splat, f.size() / 32, 0};
-    throw FileFormatError(path, "unknown splat format: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
+GaussianCloud read_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    switch (detect_splat_format(f.data(), f.size(), f.path())) {
+        case SplatFormat::Ply:
+        case SplatFormat::CompressedPly: return read_ply(f, options, report);
+        case SplatFormat::Spz: return read_spz(f, options, report);
+        case SplatFormat::Sog: return read_sog(f, options, report);
+        case SplatFormat::Gltf: return read_gltf_splats(f, options, report);
+        case SplatFormat::Splat: return read_dot_splat(f, options, report);
+    }
+    throw FileFormatError(f.path(), "unknown splat format");
 }
+
+SplatFileSummary probe_splat(const FileBytes& f) {
+    switch (detect_splat_format(f.data(), f.size(), f.path())) {
+        case SplatFormat::Ply:
+        case SplatFormat::CompressedPly: return probe_ply(f);
+        case SplatFormat::Spz: return probe_spz(f);
+        case SplatFormat::Sog: return probe_sog(f);
+        case SplatFormat::Gltf: return probe_gltf(f);
+        case SplatFormat::Splat: return {SplatFormat::Splat, f.size() / 32, 0};
+    }
+    throw FileFormatError(f.path(), "unknown splat format");
+}
+
+GaussianCloud read_splat_bytes(const std::uint8_t* data, std::size_t size, const std::string& name, const ReadOptions& options,
+                               LoadReport* report) {
+    return read_splat(FileBytes(data, size, name), options, report);
+}
+
+SplatFileSummary probe_splat_bytes(const std::uint8_t* data, std::size_t size, const std::string& name) {
+    return probe_splat(FileBytes(data, size, name));
+}
+
+}  // namespace io
+
+GaussianCloud read_splat_file(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    return io::read_splat(io::FileBytes(path), options, report);
+}
+
+SplatFileSummary probe_splat_file(const std::string& path) { return io::probe_splat(io::FileBytes(path)); }
 
 void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
     switch (splat_format_from_extension(path)) {

@@ -412,6 +412,22 @@ GaussianCloud read_spz_v4(const io::FileBytes& f) {
 }  // namespace
 
 namespace io {
+bool gzip_holds_spz(const std::uint8_t* data, std::size_t size) {
+    if (size < 2 || data[0] != 0x1f || data[1] != 0x8b) return false;
+    z_stream zs{};
+    zs.next_in = const_cast<Bytef*>(data);
+    zs.avail_in = static_cast<uInt>(std::min<std::size_t>(size, 0x7fffffff));
+    if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) return false;
+    std::uint8_t magic[4];
+    zs.next_out = magic;
+    zs.avail_out = 4;
+    int rc = Z_OK;
+    while (zs.avail_out > 0 && (rc == Z_OK || rc == Z_BUF_ERROR) && zs.avail_in > 0) rc = inflate(&zs, Z_NO_FLUSH);
+    const bool complete = zs.avail_out == 0;
+    inflateEnd(&zs);
+    return complete && load_u32le(magic) == kMagic;
+}
+
 SplatFileSummary probe_spz(const FileBytes& f) {
     const std::string& path = f.path();
     std::uint8_t hdr[16];
@@ -439,8 +455,9 @@ SplatFileSummary probe_spz(const FileBytes& f) {
 }
 }  // namespace io
 
-GaussianCloud read_spz(const std::string& path, const ReadOptions& options, LoadReport* report) {
-    io::FileBytes f(path);
+namespace io {
+GaussianCloud read_spz(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
+    const std::string& path = f.path();
     if (f.size() == 0) throw FileFormatError(path, "file is empty");
     GaussianCloud c;
     if (f.size() >= 2 && f.data()[0] == 0x1f && f.data()[1] == 0x8b) {
@@ -452,6 +469,11 @@ GaussianCloud read_spz(const std::string& path, const ReadOptions& options, Load
     }
     io::finalize_cloud(c, options, report);
     return c;
+}
+}  // namespace io
+
+GaussianCloud read_spz(const std::string& path, const ReadOptions& options, LoadReport* report) {
+    return io::read_spz(io::FileBytes(path), options, report);
 }
 
 void write_spz(const std::string& path, const GaussianCloud& cloud) {

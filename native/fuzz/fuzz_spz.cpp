@@ -1,0 +1,11 @@
+// libFuzzer target: Niantic SPZ (gzip versions 2 and 3, zstd version 4) (the contract: fuzz_contract.h).
+#include "fuzz_contract.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    using namespace raysplats;
+    fuzz::check_reader(data, size, "fuzz.spz", SplatFormat::Spz,
+                       [](const std::uint8_t* d, std::size_t n, const std::string& name, LoadReport* report) {
+                           return io::read_spz(io::FileBytes(d, n, name), {}, report);
+                       });
+    return 0;
+}
