@@ -181,8 +181,12 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
         if stats.get("invalid_rest_rotation"):
             self.report({"WARNING"}, f"{stats['invalid_rest_rotation']} polygons had a stored rotation that is not a "
                                      "rotation (NaN or zero): their Gaussians were recovered from the polygon shape")
+        if stats.get("invalid_rest_scale"):
+            self.report({"WARNING"}, f"{stats['invalid_rest_scale']} polygons had a stored scale that is not a scale "
+                                     "(negative, NaN or infinite): their Gaussians were recovered from the polygon shape")
         if stats.get("dropped"):
-            self.report({"WARNING"}, f"{stats['dropped']} polygons with invalid vertices were not exported")
+            self.report({"WARNING"}, f"{stats['dropped']} polygons with invalid vertices or a Gaussian beyond float "
+                                     "range were not exported")
         self.report({"INFO"}, f"Exported {count:,} Gaussians to {os.path.basename(self.filepath)}")
         return {"FINISHED"}
 
