@@ -362,13 +362,7 @@ class RenderEngine(unittest.TestCase):
         whole.render_scene.build("FLAT")
         changes = []
 
-        def handler(scene_, depsgraph_):
-            changes.append(live.update(depsgraph_))
-            limit, sync.PARTIAL_RECOVERY_LIMIT = sync.PARTIAL_RECOVERY_LIMIT, -1
-            try:
-                whole.update(depsgraph_)
-            finally:
-                sync.PARTIAL_RECOVERY_LIMIT = limit
+        handler = updating_live_and_whole(live, whole, changes)
 
         bpy.app.handlers.depsgraph_update_post.append(handler)
         core = st.native()
@@ -459,13 +453,7 @@ class RenderEngine(unittest.TestCase):
             reads.append(reader(*args))
             return reads[-1]
 
-        def handler(scene_, depsgraph_):
-            changes.append(live.update(depsgraph_))
-            limit, sync.PARTIAL_RECOVERY_LIMIT = sync.PARTIAL_RECOVERY_LIMIT, -1
-            try:
-                whole.update(depsgraph_)
-            finally:
-                sync.PARTIAL_RECOVERY_LIMIT = limit
+        handler = updating_live_and_whole(live, whole, changes)
 
         core = st.native()
 
@@ -544,6 +532,22 @@ class RenderEngine(unittest.TestCase):
         self.assertTrue(job.wait(10.0))
         self.assertLess(time.perf_counter() - start, 10.0)
         self.assertTrue(job.result()["cancelled"])
+
+
+def updating_live_and_whole(live, whole, changes):
+    """A depsgraph_update_post handler: `live` (an interactive SceneSync) applies each update as the viewport does,
+    appending its result to `changes`; `whole` applies it recovering whole objects (and keeping the primitive order, so
+    that the two render bit for bit alike)."""
+    from raysplats.engine import sync
+
+    def handler(scene_, depsgraph_):
+        changes.append(live.update(depsgraph_))
+        limit, sync.PARTIAL_RECOVERY_LIMIT = sync.PARTIAL_RECOVERY_LIMIT, -1
+        try:
+            whole.update(depsgraph_)
+        finally:
+            sync.PARTIAL_RECOVERY_LIMIT = limit
+    return handler
 
 
 def fresh_sync():

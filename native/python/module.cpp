@@ -156,8 +156,9 @@ py::array_t<std::uint32_t> rows_that_differ(const FloatArray& previous, const Fl
     return to_numpy(std::move(changed), {n});
 }
 
-py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const IntArray& face_corner_start,
-                                           const IntArray& face_corner_count) {
+// The faces and corners of a mesh whose corner UVs are given (no vertices): what the per-face UV readers take.
+raysplats::PolygonMeshView uv_mesh_view(const FloatArray& corner_uvs, const IntArray& face_corner_start,
+                                        const IntArray& face_corner_count) {
     raysplats::PolygonMeshView mesh;
     mesh.corner_count = std::size_t(require_shape(corner_uvs, "corner_uvs", {kAnySize, 2}));
     const py::ssize_t faces = require_shape(face_corner_start, "face_corner_start", {kAnySize});
@@ -165,6 +166,13 @@ py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const I
     mesh.face_corner_start = face_corner_start.data();
     mesh.face_corner_count = face_corner_count.data();
     mesh.face_count = std::size_t(faces);
+    return mesh;
+}
+
+py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const IntArray& face_corner_start,
+                                           const IntArray& face_corner_count) {
+    const raysplats::PolygonMeshView mesh = uv_mesh_view(corner_uvs, face_corner_start, face_corner_count);
+    const py::ssize_t faces = py::ssize_t(mesh.face_count);
     std::vector<float> reversed;
     {
         py::gil_scoped_release release;
@@ -175,13 +183,8 @@ py::array_t<float> faces_with_reversed_uvs(const FloatArray& corner_uvs, const I
 
 py::array_t<float> polygon_radius_from_uvs(const FloatArray& corner_uvs, const IntArray& face_corner_start,
                                            const IntArray& face_corner_count) {
-    raysplats::PolygonMeshView mesh;
-    mesh.corner_count = std::size_t(require_shape(corner_uvs, "corner_uvs", {kAnySize, 2}));
-    const py::ssize_t faces = require_shape(face_corner_start, "face_corner_start", {kAnySize});
-    require_shape(face_corner_count, "face_corner_count", {faces});
-    mesh.face_corner_start = face_corner_start.data();
-    mesh.face_corner_count = face_corner_count.data();
-    mesh.face_count = std::size_t(faces);
+    const raysplats::PolygonMeshView mesh = uv_mesh_view(corner_uvs, face_corner_start, face_corner_count);
+    const py::ssize_t faces = py::ssize_t(mesh.face_count);
     std::vector<float> radius;
     {
         py::gil_scoped_release release;
