@@ -16,12 +16,16 @@ def _draw_compact_settings(layout, obj):
     layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
     # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
     # deleted without merging keeps them out until restored.
-    for region_id, name in compact_splats.open_regions(obj).items():
+    # (Short lines: the sidebar is narrow, and a long label is cut in its middle.)
+    regions = compact_splats.open_regions(obj)
+    if regions:
+        layout.label(text="Out in regions:")  # (their Gaussians render and export from there)
+    for region_id, name in regions.items():
         region = compact_splats.region_object(obj, region_id)
         if region is not None:
-            layout.label(text=f"Out in '{region.name}' (Merge Back returns them)", icon="MESH_DATA")
+            layout.label(text=region.name, icon="MESH_DATA")
         else:
-            layout.label(text=f"Region '{name}' was deleted: its Gaussians are left out", icon="ERROR")
+            layout.label(text=f"{name} (deleted)", icon="ERROR")
     if compact_splats.orphaned_regions(obj):
         layout.operator(compact_splats.OBJECT_OT_raysplats_restore_regions.bl_idname, icon="LOOP_BACK")
     if obj.mode != "EDIT":
