@@ -19,23 +19,6 @@ SMALL = "donut_sh0.ply"    # 45,624 Gaussians, SH degree 0
 TARGET_BYTES_PER_GAUSSIAN = 700
 
 
-def status_bytes(field):
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(field)
-
-
-def reset_peak():
-    try:
-        with open("/proc/self/clear_refs", "w") as clear_refs:
-            clear_refs.write("5")
-        return True
-    except OSError:
-        return False
-
-
 def expected_layers(faces, k, sh_degree):
     """{name: (domain, bytes)} of a Gaussian mesh of `faces` K-gons as this Blender stores it."""
     corners = faces * k
@@ -64,11 +47,11 @@ class ImportMemory(unittest.TestCase):
         st.reset_scene()
         path = st.data_file(BIG)
         summary = st.native().probe_splat_file(path)
-        before = status_bytes("VmRSS")
-        if not reset_peak():
+        before = mesh_memory.process_memory_bytes("VmRSS")
+        if not mesh_memory.reset_peak_memory():
             self.skipTest("VmHWM cannot be reset here (/proc/self/clear_refs)")
         bpy.ops.import_scene.gaussian_splats(filepath=path)  # the defaults
-        peak = status_bytes("VmHWM") - before
+        peak = mesh_memory.process_memory_bytes("VmHWM") - before
         obj = bpy.context.view_layer.objects.active
         mesh = obj.data
         count = len(mesh.polygons)

@@ -34,46 +34,28 @@ from raysplats import mesh_memory, native  # noqa: E402
 native.core()  # the core's libraries count as the empty Blender
 
 
-def status_kb(field):
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(field + ":"):
-                return int(line.split()[1])
-    raise RuntimeError(f"/proc/self/status has no {field}")
-
-
-def reset_peak():
-    """Resets VmHWM to the current RSS (Linux 4.0+); False where that is not allowed."""
-    try:
-        with open("/proc/self/clear_refs", "w") as clear_refs:
-            clear_refs.write("5")
-        return True
-    except OSError:
-        return False
-
-
 def mb(n):
     return f"{n / 1e6:8.1f} MB"
 
 
 context = bpy.context
-empty = status_kb("VmRSS") * 1024
-peak_reset = reset_peak()
+empty = mesh_memory.process_memory_bytes("VmRSS")
+peak_reset = mesh_memory.reset_peak_memory()
 t = time.perf_counter()
 options = {"filepath": args.file, "max_count": args.max_count}
 if args.k is not None:
     options["vertices_per_polygon"] = args.k
 bpy.ops.import_scene.gaussian_splats(**options)
 seconds = time.perf_counter() - t
-import_peak = status_kb("VmHWM") * 1024
-after_import = status_kb("VmRSS") * 1024
+import_peak = mesh_memory.process_memory_bytes("VmHWM")
+after_import = mesh_memory.process_memory_bytes("VmRSS")
 obj = context.view_layer.objects.active
 mesh = obj.data
 count = len(mesh.polygons)
 context.view_layer.update()
 context.evaluated_depsgraph_get()
-evaluated_peak = status_kb("VmHWM") * 1024
-after_evaluation = status_kb("VmRSS") * 1024
+evaluated_peak = mesh_memory.process_memory_bytes("VmHWM")
+after_evaluation = mesh_memory.process_memory_bytes("VmRSS")
 
 blend = os.path.join(args.work, "raysplats_import_memory.blend")
 bpy.ops.wm.save_as_mainfile(filepath=blend, compress=False, copy=True)

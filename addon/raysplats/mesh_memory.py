@@ -1,7 +1,28 @@
 # Where a mesh's bytes go: the size of each of its layers (the built-in vertex, edge, corner and face arrays, every
 # generic attribute, UV maps), for the import memory benchmark (examples/benchmark_import_memory.py) and the test
-# that pins the Gaussian mesh's layout (blender_tests/test_import_memory.py). Any mesh, not only Gaussian ones.
+# that pins the Gaussian mesh's layout (blender_tests/test_import_memory.py). Any mesh, not only Gaussian ones. And
+# the process's resident memory and its peak, which both of them measure an import by.
 from . import blender_compat
+
+
+def process_memory_bytes(field):
+    """A memory figure of this process from /proc/self/status (Linux), in bytes: "VmRSS" (resident now), "VmHWM"
+    (peak resident)."""
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def reset_peak_memory():
+    """Resets VmHWM to the current resident memory (Linux 4.0+); False where that is not allowed."""
+    try:
+        with open("/proc/self/clear_refs", "w") as clear_refs:
+            clear_refs.write("5")
+        return True
+    except OSError:
+        return False
 
 # Bytes per element of each generic attribute type.
 ATTRIBUTE_TYPE_BYTES = {"FLOAT": 4, "INT": 4, "FLOAT_VECTOR": 12, "FLOAT_COLOR": 16, "BYTE_COLOR": 4, "STRING": 0,
