@@ -328,13 +328,8 @@ class RenderEngine(unittest.TestCase):
         def handler(scene_, depsgraph_):
             changes.append(live.update(depsgraph_))
 
-        core = st.native()
-
         def image(scene_sync):
-            settings = sync.render_settings(scene, 96, 72, 2)
-            settings["compositing"] = "SORTED"
-            camera = sync.camera_settings(scene, scene.camera, 96, 72)
-            return core.RenderJob(scene_sync.render_scene, camera, settings).result()["rgba"]
+            return sorted_image(scene, scene_sync)
 
         before = image(live)
         bpy.app.handlers.depsgraph_update_post.append(handler)
@@ -365,7 +360,6 @@ class RenderEngine(unittest.TestCase):
         handler = updating_live_and_whole(live, whole, changes)
 
         bpy.app.handlers.depsgraph_update_post.append(handler)
-        core = st.native()
 
         def images(reference=None):
             """Sorted and stochastic renders of `live` and of the reference (by default a scene built from scratch
@@ -373,11 +367,7 @@ class RenderEngine(unittest.TestCase):
             reference = reference or fresh_sync()
             out = []
             for compositing in ("SORTED", "STOCHASTIC"):
-                settings = sync.render_settings(scene, 96, 72, 2)
-                settings["compositing"] = compositing
-                camera = sync.camera_settings(scene, scene.camera, 96, 72)
-                out.append([core.RenderJob(s.render_scene, camera, settings).result()["rgba"]
-                            for s in (live, reference)])
+                out.append([sorted_image(scene, s, compositing) for s in (live, reference)])
             return out
 
         try:
@@ -455,13 +445,8 @@ class RenderEngine(unittest.TestCase):
 
         handler = updating_live_and_whole(live, whole, changes)
 
-        core = st.native()
-
         def image(scene_sync):
-            settings = sync.render_settings(scene, 96, 72, 2)
-            settings["compositing"] = "SORTED"
-            camera = sync.camera_settings(scene, scene.camera, 96, 72)
-            return core.RenderJob(scene_sync.render_scene, camera, settings).result()["rgba"]
+            return sorted_image(scene, scene_sync)
 
         def converted_positions():
             evaluated = splats.evaluated_get(bpy.context.evaluated_depsgraph_get())
@@ -532,6 +517,15 @@ class RenderEngine(unittest.TestCase):
         self.assertTrue(job.wait(10.0))
         self.assertLess(time.perf_counter() - start, 10.0)
         self.assertTrue(job.result()["cancelled"])
+
+
+def sorted_image(scene, scene_sync, compositing="SORTED"):
+    """The 96 x 72, 2-sample render (sorted compositing unless said otherwise) of `scene_sync`'s native scene through the scene's camera."""
+    from raysplats.engine import sync
+    settings = sync.render_settings(scene, 96, 72, 2)
+    settings["compositing"] = compositing
+    camera = sync.camera_settings(scene, scene.camera, 96, 72)
+    return st.native().RenderJob(scene_sync.render_scene, camera, settings).result()["rgba"]
 
 
 def updating_live_and_whole(live, whole, changes):
