@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "addon"))
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import native  # noqa: E402
+from raysplats import gaussian_mesh, native  # noqa: E402
 from raysplats.engine import sync  # noqa: E402
 
 bpy.ops.import_scene.gaussian_splats(filepath=args.scene)
@@ -32,10 +32,13 @@ for location in ((0, 0, -2), (2, 0, 0), (-2, 0, 0)):
 bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, -3))
 bpy.ops.object.light_add(type="SUN")
 # Camera at the median of the splat centres, looking along a horizontal axis, 60° field of view.
-centres = np.empty(len(splats.data.polygons) * 3, dtype=np.float32)
-splats.data.polygons.foreach_get("center", centres)
-world = np.array(splats.matrix_world)
-median = np.median(centres.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3], axis=0)
+world_centres = []
+for piece in gaussian_mesh.scene_pieces(splats.parent or splats):  # (a big scene is imported in pieces)
+    centres = np.empty(len(piece.data.polygons) * 3, dtype=np.float32)
+    piece.data.polygons.foreach_get("center", centres)
+    world = np.array(piece.matrix_world)
+    world_centres.append(centres.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3])
+median = np.median(np.concatenate(world_centres), axis=0)
 bpy.ops.object.camera_add(location=median, rotation=(np.pi / 2, 0, -np.pi / 2))
 camera = bpy.context.object
 camera.data.sensor_fit, camera.data.sensor_width = "HORIZONTAL", 36.0

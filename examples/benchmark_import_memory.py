@@ -29,7 +29,7 @@ sys.path.insert(0, args.addon_dir)
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import mesh_memory, native  # noqa: E402
+from raysplats import gaussian_mesh, mesh_memory, native  # noqa: E402
 
 native.core()  # the core's libraries count as the empty Blender
 
@@ -50,8 +50,8 @@ seconds = time.perf_counter() - t
 import_peak = mesh_memory.process_memory_bytes("VmHWM")
 after_import = mesh_memory.process_memory_bytes("VmRSS")
 obj = context.view_layer.objects.active
-mesh = obj.data
-count = len(mesh.polygons)
+pieces = gaussian_mesh.scene_pieces(obj.parent or obj)  # (a big scene is imported in pieces)
+count = sum(len(piece.data.polygons) for piece in pieces)
 context.view_layer.update()
 context.evaluated_depsgraph_get()
 evaluated_peak = mesh_memory.process_memory_bytes("VmHWM")
@@ -73,10 +73,15 @@ print(f"  peak during import            {mb(import_peak)}   {(import_peak - empt
 print(f"  after import                  {mb(after_import)}   {(after_import - empty) / count:7.0f} B/Gaussian")
 print(f"  peak with the evaluated copy  {mb(evaluated_peak)}   {(evaluated_peak - empty) / count:7.0f} B/Gaussian")
 print(f"  after evaluation              {mb(after_evaluation)}   {(after_evaluation - empty) / count:7.0f} B/Gaussian")
-sizes = mesh_memory.layer_sizes(mesh)
+sizes = {}
+for piece in pieces:
+    for name, (domain, size) in mesh_memory.layer_sizes(piece.data).items():
+        sizes[name] = (domain, sizes.get(name, (domain, 0))[1] + size)
 total = sum(size for _, size in sizes.values())
-print(f"  mesh layers ({len(mesh.vertices):,} vertices, {len(mesh.edges):,} edges, {len(mesh.loops):,} corners, "
-      f"{count:,} faces):")
+vertices, edges, corners = (sum(len(getattr(piece.data, key)) for piece in pieces)
+                            for key in ("vertices", "edges", "loops"))
+print(f"  mesh layers ({vertices:,} vertices, {edges:,} edges, {corners:,} corners, {count:,} faces, "
+      f"{len(pieces)} object(s)):")
 for name, (domain, size) in sorted(sizes.items(), key=lambda item: -item[1][1]):
     print(f"    {name:<22} {domain:<7} {mb(size)}   {size / count:6.1f} B/Gaussian")
 print(f"    {'total':<22} {'':<7} {mb(total)}   {total / count:6.1f} B/Gaussian")

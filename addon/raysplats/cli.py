@@ -178,7 +178,10 @@ def _do_import(source, target, args):
     obj = _import_splats(source, args)
     with _atomic_output(target) as temporary:
         bpy.ops.wm.save_as_mainfile(filepath=temporary, copy=True, compress=False)
-    return f"{len(obj.data.polygons):,} Gaussians"
+    from raysplats import gaussian_mesh
+    pieces = gaussian_mesh.scene_pieces(obj)
+    count = sum(len(piece.data.polygons) for piece in pieces) if pieces else len(getattr(obj.data, "points", obj.data.vertices))
+    return f"{count:,} Gaussians" + (f" in {len(pieces)} pieces" if len(pieces) > 1 else "")
 
 
 def _do_export(source, target, args):

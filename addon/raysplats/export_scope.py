@@ -2,6 +2,8 @@
 # Active Collection) as one drop-down shared by the splat and the mesh exporters. Visible is the default: an export
 # writes what the user sees, and an object the user hid is never exported unless asked for (issue 13).
 
+from . import gaussian_mesh
+
 LIMIT_TO_ITEMS = (
     ("VISIBLE", "Visible Objects", "Objects visible in the viewport (hidden objects and excluded collections are "
                                    "left out)"),
@@ -26,7 +28,14 @@ def objects_in_scope(context, limit_to=DEFAULT_LIMIT_TO):
     """The scene objects an export limited to `limit_to` (an identifier of LIMIT_TO_ITEMS) writes, in scene order."""
     view_layer = context.view_layer
     if limit_to == "SELECTED":
-        return list(context.selected_objects)
+        # A selected empty of a split scene (io_import.add_gaussian_pieces) stands for its pieces.
+        selected = list(context.selected_objects)
+        chosen = set(selected)
+        for obj in selected:
+            if obj.type == "EMPTY":
+                selected += [child for child in obj.children if child not in chosen and gaussian_mesh.is_gaussian_object(child)]
+                chosen.update(obj.children)
+        return selected
     if limit_to == "VISIBLE":
         return [obj for obj in view_layer.objects if obj.visible_get(view_layer=view_layer)]
     if limit_to == "RENDERABLE":

@@ -191,6 +191,16 @@ def is_gaussian_object(obj):
         and obj.raysplats.is_gaussian
 
 
+def scene_pieces(obj):
+    """The Gaussian objects of an imported scene: `obj` itself when it is one, or the pieces of a split scene
+    (io_import.add_gaussian_pieces) when `obj` is their empty, in name order; [] otherwise."""
+    if is_gaussian_object(obj):
+        return [obj]
+    if obj is None or obj.type != "EMPTY":
+        return []
+    return sorted((child for child in obj.children if is_gaussian_object(child)), key=lambda child: child.name)
+
+
 def recover_from_arrays(core, arrays, attributes, settings, mesh_to_output, faces=None, adjust_colors=True):
     """Recovers the Gaussians of mesh_arrays() and face_attributes() of a Gaussian mesh in the space given by
     mesh_to_output (4x4, applied to the mesh's own coordinates); with `faces`, only those (row j is face faces[j]).

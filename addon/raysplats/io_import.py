@@ -100,6 +100,41 @@ def auto_vertices_per_polygon(count):
     return 8 if count <= AUTO_OCTAGON_LIMIT else 4
 
 
+# Objects "Auto": a scene whose polygons have more than AUTO_SINGLE_OBJECT_VERTICES vertices is split into spatially
+# compact pieces of at most AUTO_PIECE_VERTICES vertices, one object each, under one empty (issue 17, edits at
+# interactive speed). In Rendered view and Material Preview Blender re-evaluates an edited object whole after each
+# edit: it converts the edit mesh to a mesh to add the original coordinates those shadings request
+# (DerivedMesh.cc, editbmesh_calc_modifiers: "avoid the need to convert to mesh data just to add an orco layer"),
+# about 0.15 s per million vertices here, twice per edit. Measured on showroom_1.5M.ply (6 M vertices) moving 100
+# splats in Edit Mode in Rendered view, Blender 3.4: one object 2.3-3.2 s to the first image; 16 pieces of 375 k
+# vertices 0.05 s for the move itself (blender_tests/gui/viewport_rendered.py prints it). biker_v4.spz (152 k
+# octagons, 1.2 M vertices) stays one object: 0.46 s.
+AUTO_SINGLE_OBJECT_VERTICES = 1_500_000
+AUTO_PIECE_VERTICES = 400_000
+
+OBJECTS_ITEMS = (
+    ("AUTO", "Automatic", "One object while the polygons have at most 1.5 million vertices (biker_v4: 152 k "
+                          "octagons), spatial pieces of 400 thousand vertices above, under one empty"),
+    ("ONE", "One Object", "Always one object (editing a few splats of a big scene then updates the whole object: "
+                          "seconds per edit in Rendered view)"),
+    ("PIECES", "Pieces", "Spatially compact pieces of at most Piece Size Gaussians, one object each, under one empty "
+                         "that carries the scene's transform"),
+)
+
+
+def gaussians_per_piece(objects, count, vertices_per_polygon, piece_size=0):
+    """How many Gaussians each object of an import of `count` Gaussians at K = `vertices_per_polygon` holds at most:
+    `count` for one object (objects "ONE", or "AUTO" up to AUTO_SINGLE_OBJECT_VERTICES), else `piece_size` ("PIECES"
+    with piece_size > 0) or AUTO_PIECE_VERTICES / K."""
+    if objects not in {item[0] for item in OBJECTS_ITEMS}:
+        raise ValueError(f"unknown Objects choice '{objects}' (known: {', '.join(i[0] for i in OBJECTS_ITEMS)})")
+    if objects == "ONE" or (objects == "AUTO" and count * vertices_per_polygon <= AUTO_SINGLE_OBJECT_VERTICES):
+        return max(count, 1)
+    if objects == "PIECES" and piece_size > 0:
+        return piece_size
+    return max(1, AUTO_PIECE_VERTICES // vertices_per_polygon)
+
+
 def resolve_vertices_per_polygon(core, filepath, vertices_per_polygon, max_count=0):
     """`vertices_per_polygon`, or for 0 (Auto) auto_vertices_per_polygon() of the Gaussians the file declares (at most
     max_count), read from its header."""
@@ -147,12 +182,15 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, repre
 
 
 def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0, up_axis="DETECT",
-                           min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS"):
+                           min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS",
+                           objects="AUTO", piece_size=0):
     """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
     (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
     file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
     format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
-    `vertices_per_polygon`: K, or 0 for Auto (auto_vertices_per_polygon). Returns (object, warnings, stage timings).
+    `vertices_per_polygon`: K, or 0 for Auto (auto_vertices_per_polygon). `objects`, `piece_size`: one object or
+    spatial pieces (gaussians_per_piece); a split scene is an empty with the pieces as its children, and the object
+    returned is that empty (gaussian_mesh.scene_pieces gives the pieces). Returns (object, warnings, stage timings).
     Raises on bad input or too little memory; nothing is added then (a failure at any step leaves no mesh or object
     behind)."""
     from . import compact_splats  # (it imports this module)
@@ -193,12 +231,19 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0
                 obj = compact_splats.add_compact_object(context, name, cloud, resolved, filepath)
                 del cloud
             else:
-                obj, warnings = add_gaussian_object(context, name, holder.pop(), vertices_per_polygon, radius,
-                                                    resolved, filepath, progress)
+                cloud = holder.pop()
+                per_piece = gaussians_per_piece(objects, len(cloud["opacities"]), vertices_per_polygon, piece_size)
+                if per_piece < len(cloud["opacities"]):
+                    obj, warnings = add_gaussian_pieces(context, name, cloud, per_piece, vertices_per_polygon, radius,
+                                                        resolved, filepath, progress)
+                else:
+                    obj, warnings = add_gaussian_object(context, name, cloud, vertices_per_polygon, radius,
+                                                        resolved, filepath, progress)
+                del cloud
             obj.rotation_euler = axes.object_rotation_euler(resolved)
             if gltf_meshes and splat_format is not None and splat_format["name"] == "gltf":
                 io_gltf.import_gltf_meshes(context, filepath)
-                context.view_layer.objects.active = obj
+                context.view_layer.objects.active = (gaussian_mesh.scene_pieces(obj) or [obj])[0]
         except BaseException as error:
             # Whatever step failed, nothing half-imported stays (add_gaussian_object cleans up its own failures).
             if obj is not None:
@@ -219,26 +264,97 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
     only reference to `cloud` lets it go as soon as the polygons hold every face's own Gaussian. `vertices_per_polygon`:
     K, or 0 for Auto (auto_vertices_per_polygon of the cloud's size)."""
     stage = progress.stage if progress is not None else (lambda name: None)
-    core = native.core()
     if vertices_per_polygon <= 0:
         vertices_per_polygon = auto_vertices_per_polygon(len(cloud["opacities"]))
     stage("build polygons")
-    polygons = core.gaussians_to_polygons(
-        cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"],
-        vertices_per_polygon=vertices_per_polygon, radius=radius)
-    warnings = list(cloud.get("warnings", ()))
-    if polygons["invisible_skipped"]:
-        warnings.append(f"{polygons['invisible_skipped']:,} Gaussian(s) with opacity below 1/255 (invisible) "
-                        "not imported")
+    polygons = _polygons_of(cloud, vertices_per_polygon, radius)
+    warnings = list(cloud.get("warnings", ())) + _invisible_warnings(polygons["invisible_skipped"])
     sh_degree = cloud["sh_degree"]
     del cloud
     stage("fill Blender mesh")
+    obj = _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file,
+                               lambda: stage("object and material"))
+    try:
+        link_as_only_selected(context, obj)
+    except BaseException:
+        remove_gaussian_object(obj)
+        raise
+    return obj, warnings
+
+
+def add_gaussian_pieces(context, name, cloud, per_piece, vertices_per_polygon, radius, up_axis, source_file="",
+                        progress=None):
+    """`cloud` as add_gaussian_object, split into spatially compact pieces of at most `per_piece` Gaussians
+    (the core's k-d split of the centres): one Gaussian object per piece, named "<name>_01"..., each the child of
+    one new empty `name` that carries the scene's transform (the pieces keep identity transforms). The empty and
+    every piece are selected, and the first piece is active, so G moves the whole scene and Tab edits every piece.
+    Returns (empty, warnings). On failure nothing stays."""
+    stage = progress.stage if progress is not None else (lambda name: None)
+    core = native.core()
+    stage("build polygons")
+    order, starts = core.split_into_spatial_pieces(cloud["positions"], per_piece)
+    for key in ("positions", "rotations", "scales", "opacities", "sh"):
+        cloud[key] = cloud[key][order]  # (each key's old array is freed as its piece-ordered copy replaces it)
+    del order
+    warnings, invisible, made = list(cloud.get("warnings", ())), 0, []
+    width = len(str(len(starts) - 1))
+    if progress is not None:
+        progress.add_stages(2 * (len(starts) - 2))  # build and fill for each piece after the first
+    root = bpy.data.objects.new(name, None)
+    root.empty_display_type = "PLAIN_AXES"
+    try:
+        for index, (begin, end) in enumerate(zip(starts[:-1], starts[1:])):
+            stage("build polygons")
+            piece = {key: cloud[key][begin:end] for key in ("positions", "rotations", "scales", "opacities", "sh")}
+            polygons = _polygons_of(piece, vertices_per_polygon, radius)
+            del piece
+            invisible += polygons["invisible_skipped"]
+            if len(polygons["face_corner_start"]) == 0:
+                continue  # a piece of invisible Gaussians only
+            stage("fill Blender mesh")
+            obj = _new_gaussian_object(f"{name}_{index + 1:0{width}d}", polygons, vertices_per_polygon, radius,
+                                       cloud["sh_degree"], up_axis, source_file)
+            made.append(obj)
+            obj.parent = root
+        stage("object and material")
+        del cloud
+        link_as_only_selected(context, root)
+        collection = root.users_collection[0]
+        for obj in made:
+            collection.objects.link(obj)
+            obj.select_set(True)
+        if made:
+            context.view_layer.objects.active = made[0]
+    except BaseException:
+        for obj in made:
+            remove_gaussian_object(obj)
+        bpy.data.objects.remove(root)
+        raise
+    return root, warnings + _invisible_warnings(invisible)
+
+
+def _polygons_of(cloud, vertices_per_polygon, radius):
+    return native.core().gaussians_to_polygons(
+        cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"],
+        vertices_per_polygon=vertices_per_polygon, radius=radius)
+
+
+def _invisible_warnings(invisible_skipped):
+    return ([f"{invisible_skipped:,} Gaussian(s) with opacity below 1/255 (invisible) not imported"]
+            if invisible_skipped else [])
+
+
+def _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file,
+                         before_object=None):
+    """A Gaussian object of its own new mesh filled from `polygons` (the core's gaussians_to_polygons dict, emptied
+    on the way), not linked to any collection. On failure nothing stays."""
     mesh = bpy.data.meshes.new(name)
     obj = None
     try:
         gaussian_mesh.fill_mesh(mesh, polygons)  # (takes the arrays out of `polygons`, freeing each once copied)
         del polygons
-        stage("object and material")
+        if before_object is not None:
+            before_object()
         mesh.materials.append(material.gaussian_material())
         obj = bpy.data.objects.new(name, mesh)
         settings = obj.raysplats
@@ -248,14 +364,13 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
         settings.sh_degree = sh_degree
         settings.source_file = source_file
         settings.up_axis = up_axis
-        link_as_only_selected(context, obj)
     except BaseException:
         # Whatever step failed, the data-blocks made so far go: removing the object unlinks it everywhere.
         if obj is not None:
             bpy.data.objects.remove(obj)
         bpy.data.meshes.remove(mesh)
         raise
-    return obj, warnings
+    return obj
 
 
 def link_as_only_selected(context, obj):
@@ -269,7 +384,10 @@ def link_as_only_selected(context, obj):
 
 
 def remove_gaussian_object(obj):
-    """Removes an object an import made, with its mesh or point cloud (the import failed after it)."""
+    """Removes an object an import made, with its mesh or point cloud (the import failed after it), and for a split
+    scene's empty its pieces."""
+    for piece in [child for child in obj.children if gaussian_mesh.is_gaussian_object(child)]:
+        remove_gaussian_object(piece)
     data = obj.data
     bpy.data.objects.remove(obj)
     if data is not None and data.users == 0:
@@ -335,6 +453,14 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
     representation: EnumProperty(
         name="Import As", items=REPRESENTATION_ITEMS, default="AUTO",
         description="How the Gaussians are held in Blender: editable polygons, or compact points for big scenes")
+    objects: EnumProperty(
+        name="Objects", items=OBJECTS_ITEMS, default="AUTO",
+        description="One object, or spatial pieces under one empty: moving splats in Edit Mode then updates only "
+                    "the pieces they are in, which keeps big scenes interactive in Rendered view")
+    piece_size: IntProperty(
+        name="Piece Size", default=0, min=0,
+        description="Gaussians per piece when Objects is Pieces (0: Auto, 400 thousand polygon vertices: 100 k "
+                    "quadrilaterals or 50 k octagons)")
     gltf_meshes: BoolProperty(
         name="glTF Meshes", default=True,
         description="For .glb/.gltf files: also import the file's meshes (not its splats) with Blender's glTF importer")
@@ -361,7 +487,8 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        for heading, names in (("Polygons", ("representation", "vertices_per_polygon", "radius", "up_axis")),
+        for heading, names in (("Polygons", ("representation", "vertices_per_polygon", "radius", "up_axis",
+                                             "objects", "piece_size")),
                                ("Limit", ("min_opacity", "max_count")),
                                ("glTF", ("gltf_meshes",)),
                                ("Viewport", ("color_solid_views", "preview_samples"))):
@@ -383,23 +510,28 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
         for path in self.selected_paths():
             obj, warnings, _ = import_gaussian_splats(
                 context, path, self.vertices_per_polygon, self.radius, self.up_axis, self.min_opacity, self.max_count,
-                self.gltf_meshes, self.representation)
-            imported.append(obj)
-            polygons = gaussian_mesh.is_gaussian_object(obj)
-            if self.color_solid_views and polygons:
-                show_splat_colors_in_solid_views(context, obj)
+                self.gltf_meshes, self.representation, self.objects, self.piece_size)
+            pieces = gaussian_mesh.scene_pieces(obj)
+            imported += [obj] + [piece for piece in pieces if piece is not obj]
+            if self.color_solid_views and pieces:
+                show_splat_colors_in_solid_views(context, pieces[0])
             for warning in warnings:
                 self.report({"WARNING"}, f"{os.path.basename(path)}: {warning}")
-            if polygons:
-                count, up_axis, form = len(obj.data.polygons), obj.raysplats.up_axis, ""
+            if pieces:
+                count, up_axis = sum(len(piece.data.polygons) for piece in pieces), pieces[0].raysplats.up_axis
+                form = f" in {len(pieces)} pieces" if pieces[0] is not obj else ""
             else:
                 from .native_splats import UP_AXIS_PROPERTY
                 count = len(getattr(obj.data, "points", obj.data.vertices))
                 up_axis, form = obj.get(UP_AXIS_PROPERTY, "-Y"), " as compact points"
             self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}{form} "
                                   f"(up axis {up_axis})")
-        for obj in imported:  # all of them selected, the last one active (import_gaussian_splats selects only its own)
+        # All of them selected, the last file's active (import_gaussian_splats selects only its own): for a split
+        # scene its first piece, so that Tab enters Edit Mode.
+        active = context.view_layer.objects.active
+        for obj in imported:
             obj.select_set(True)
+        context.view_layer.objects.active = active
         raise_material_preview_samples(context.scene, self.preview_samples)
         return {"FINISHED"}
 

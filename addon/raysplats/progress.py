@@ -18,13 +18,21 @@ class StageProgress:
             self.window_manager.progress_begin(0, self.stage_count)
         return self
 
+    def add_stages(self, count):
+        """`count` more stages than announced (e.g. one per piece of a split import): the bar's range grows."""
+        self.stage_count += count
+        if self.window_manager is not None:
+            self.window_manager.progress_begin(0, self.stage_count)
+            self.window_manager.progress_update(self._done)
+
     def stage(self, name):
+        """Starts stage `name`; a name used again adds to its time."""
         self._finish_stage()
         self._stage, self._start = name, time.perf_counter()
 
     def _finish_stage(self):
         if self._stage is not None:
-            self.times[self._stage] = time.perf_counter() - self._start
+            self.times[self._stage] = self.times.get(self._stage, 0.0) + time.perf_counter() - self._start
             self._done += 1
             if self.window_manager is not None:
                 self.window_manager.progress_update(self._done)

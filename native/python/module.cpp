@@ -15,6 +15,7 @@
 #include "raysplats/gaussian_transform.h"
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
+#include "raysplats/spatial_pieces.h"
 #include "raysplats/splat_io.h"
 #include "raysplats/up_axis.h"
 
@@ -289,6 +290,18 @@ PYBIND11_MODULE(_native, m) {
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "
           "face attributes (the Gaussian's rest values, opacity, rho_i) and corner colours/UVs (DESIGN §5); "
           "invisible_skipped counts the Gaussians with opacity below 1/255, which get no face.");
+    m.def("split_into_spatial_pieces", [](const FloatArray& positions, std::size_t max_per_piece) {
+              const py::ssize_t n = require_shape(positions, "positions", {kAnySize, 3});
+              raysplats::SpatialPieces pieces;
+              {
+                  py::gil_scoped_release release;
+                  pieces = raysplats::split_into_spatial_pieces(positions.data(), std::size_t(n), max_per_piece);
+              }
+              const py::ssize_t count = py::ssize_t(pieces.starts.size());
+              return py::make_tuple(to_numpy(std::move(pieces.order), {n}), to_numpy(std::move(pieces.starts), {count}));
+          }, "positions"_a, "max_per_piece"_a,
+          "(order, starts): the Gaussians split into spatially compact pieces of at most max_per_piece (a k-d split "
+          "of the centres); piece p is order[starts[p]:starts[p + 1]], in file order.");
     m.def("transform_gaussians", &transform_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
           "matrix"_a,
           "The Gaussians mapped by an affine 4x4 matrix exactly (centres, covariances A Σ Aᵀ, SH turned by the "
