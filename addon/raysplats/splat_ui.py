@@ -50,6 +50,10 @@ def _draw_settings(layout, obj):
     layout.prop(settings, "is_gaussian", text="Gaussian Splats")
     column = layout.column()
     column.label(text=f"{len(obj.data.polygons):,} Gaussians")
+    pieces = gaussian_mesh.scene_pieces(obj.parent)
+    if obj in pieces:  # a piece of a split import (io_import.add_gaussian_pieces)
+        total = sum(len(piece.data.polygons) for piece in pieces)
+        column.label(text=f"Piece {pieces.index(obj) + 1} of {len(pieces)} of '{obj.parent.name}' ({total:,})")
     # K and rho are what the polygons were built with: changing them would re-read every polygon wrongly, so they
     # are shown, not edited.
     column = layout.column()
