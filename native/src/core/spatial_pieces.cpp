@@ -25,7 +25,6 @@ struct Splitter {
         const std::size_t n = std::size_t(end - begin);
         const std::size_t pieces = (n + max_per_piece - 1) / max_per_piece;
         if (pieces <= 1) {
-            std::sort(begin, end);
             starts->push_back(starts->back() + n);
             return;
         }
@@ -67,6 +66,13 @@ SpatialPieces split_into_spatial_pieces(const float* positions, std::size_t coun
     pieces.starts.push_back(0);
     if (count == 0) return pieces;
     Splitter{positions, max_per_piece, &pieces.starts}.split(pieces.order.data(), pieces.order.data() + count);
+    // Each piece back in file order: a counting sort by piece (O(n), where sorting each piece was a third of the
+    // split's time on showroom_1.5M.ply).
+    std::vector<std::uint32_t> piece_of(count);
+    for (std::size_t p = 0; p + 1 < pieces.starts.size(); ++p)
+        for (std::uint64_t i = pieces.starts[p]; i < pieces.starts[p + 1]; ++i) piece_of[pieces.order[i]] = std::uint32_t(p);
+    std::vector<std::uint64_t> next(pieces.starts.begin(), pieces.starts.end() - 1);
+    for (std::uint32_t i = 0; i < count; ++i) pieces.order[next[piece_of[i]]++] = i;
     return pieces;
 }
 
