@@ -130,7 +130,8 @@ def view_camera(splats, view):
     return camera_to_world, world_to_view, 0.01 * DISTANCE * extent
 
 
-def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend_space, width=WIDTH, height=HEIGHT):
+def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend_space, width=WIDTH, height=HEIGHT,
+                     splatting=False, film=None):
     scene = native.RenderScene()
     scene.add_material()
     scene.add_gaussians(splats.positions, splats.rotations, splats.scales, splats.opacities, splats.sh)
@@ -139,11 +140,15 @@ def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend
     camera = {"type": "PERSP", "matrix": camera_to_world.astype(np.float32), "lens": LENS, "sensor_width": SENSOR,
               "sensor_fit": "HORIZONTAL", "clip_start": near, "clip_end": 1e6}
     settings = {"width": width, "height": height, "samples": 1, "jitter": False, "max_bounces": 0,
-                "gaussian_mode": gaussian_mode, "blend_space": blend_space, "transmittance_threshold": 1e-4}
+                "gaussian_mode": gaussian_mode, "blend_space": blend_space, "transmittance_threshold": 1e-4,
+                "camera_ray_splatting": splatting}
     job = native.RenderJob(scene, camera, settings)
     while not job.wait(1.0):
         pass
-    rgba = np.asarray(job.result()["rgba"], np.float64).reshape(height, width, 4)
+    result = job.result()
+    if film is not None:
+        film.update(result)
+    rgba = np.asarray(result["rgba"], np.float64).reshape(height, width, 4)
     return ewa.linear_to_srgb(rgba[..., :3])  # as Blender's Standard view transform shows the linear film
 
 
