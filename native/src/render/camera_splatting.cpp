@@ -20,10 +20,11 @@ constexpr float kJacobianClamp = 1.3f;      // x/z and y/z clamped to 1.3 x the 
 constexpr float kFootprintSigmas = 3.0f;    // square half side in standard deviations (3DGS getRect's radius)
 
 // Pixels of the pixel filter's reach around a pixel (pixel_filter.h: box w / 2, Gaussian 3 w / 2, Blackman-Harris w),
-// rounded up, plus one: camera samples fall within it.
+// rounded up, plus one: camera samples fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of
+// pixels (from the region's corner) each lie in one tile.
 int filter_margin(const RenderSettings& st) {
-    if (!st.jitter) return 1;
-    return int(std::ceil(1.5f * st.filter_width)) + 1;
+    const int reach = (st.jitter ? int(std::ceil(1.5f * st.filter_width)) : 0) + 1;
+    return (reach + 3) / 4 * 4;
 }
 
 // A visible Gaussian's sort key: its depth, then its place in the scene (ties broken the same in every run).
@@ -91,7 +92,15 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         m[0] = glm::vec3(g.row0.x, g.row1.x, g.row2.x);
         m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
         m[2] = glm::vec3(g.row0.z, g.row1.z, g.row2.z);
-        const glm::mat3 l = glm::inverse(m);
+        glm::mat3 l = glm::inverse(m);
+        if (set.flat) {
+            // A flat primitive's third row is its unit normal: its column of L is the unit axis, scaled here by the
+            // Gaussian's smallest scale (as make_primitive clamps it), so that the footprint is the 3D Gaussian's, as
+            // a viewer draws it, in either mode (the mode is the geometry rays trace).
+            const float* s = &set.cloud->scales[3 * std::size_t(set.cloud_index[prim])];
+            const float largest = std::max(s[0], std::max(s[1], s[2]));
+            l[2] *= std::max(std::min(s[0], std::min(s[1], s[2])), 1e-6f * largest);
+        }
         // The Jacobian of (X, Y, Z) -> (cx + fx X / z, cy - fy Y / z), z = -Z, at the centre (x/z, y/z clamped
         // about the frustum's centre, forward.cu computeCov2D).
         const float tx = std::clamp(p.x / z, proj.center_x_tan - lim_x, proj.center_x_tan + lim_x);
@@ -101,7 +110,7 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         const glm::mat3 wa = world_to_camera_ * set.linear;
         const glm::vec3 r0 = glm::transpose(wa) * j0, r1 = glm::transpose(wa) * j1;
         double a = kDilation, b = 0.0, c = kDilation;
-        for (int k = 0; k < (set.flat ? 2 : 3); ++k) {
+        for (int k = 0; k < 3; ++k) {
             const double k0 = glm::dot(r0, l[k]), k1 = glm::dot(r1, l[k]);
             a += k0 * k0;
             b += k0 * k1;
@@ -123,8 +132,6 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         out.opacity = g.opacity;
         out.depth = z;
         out.half_extent = half;
-        out.set = set.index;
-        out.prim = prim;
         return true;
     };
 
@@ -162,14 +169,17 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
 
     // 2. The splats in depth order, with their colours (the same for every camera sample).
     splats_.resize(keys.size());
+    shades_.resize(keys.size());
     const glm::vec3 origin = camera_origin_;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         if (cancelled()) return;
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const GaussianSet& set = *s_.gaussians[keys[i].set];
-            ProjectedSplat& ps = splats_[i];
-            project(set, keys[i].prim, ps);
-            ps.color = display ? set.display_color(keys[i].prim, origin) : set.color(keys[i].prim, origin);
+            project(set, keys[i].prim, splats_[i]);
+            SplatShade& shade = shades_[i];
+            shade.color = display ? set.display_color(keys[i].prim, origin) : set.color(keys[i].prim, origin);
+            shade.set = keys[i].set;
+            shade.prim = keys[i].prim;
         }
     });
     keys.clear();
@@ -220,54 +230,69 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
 }
 
 std::size_t CameraSplatting::memory_bytes() const {
-    return splats_.capacity() * sizeof(ProjectedSplat) + entries_.capacity() * sizeof(std::uint32_t) +
+    return splats_.capacity() * sizeof(ProjectedSplat) + shades_.capacity() * sizeof(SplatShade) +
+           entries_.capacity() * sizeof(std::uint32_t) +
            offsets_.capacity() * sizeof(std::uint64_t);
 }
 
-inline void CameraSplatting::composite(Segment& seg, const Ray& ray, float x, float y, float mesh_depth, Sampler& rng,
-                                       Counters& c) const {
-    if (offsets_.empty()) return;  // the pre-pass was cancelled
+std::size_t CameraSplatting::tile_of(float x, float y) const {
     const int tx = std::clamp(int(std::floor((x - float(grid_x0_)) / kTileSize)), 0, tiles_x_ - 1);
     const int ty = std::clamp(int(std::floor((y - float(grid_y0_)) / kTileSize)), 0, tiles_y_ - 1);
-    const std::size_t t = std::size_t(ty) * tiles_x_ + tx;
+    return std::size_t(ty) * tiles_x_ + tx;
+}
+
+inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, const Ray* rays, const float* xs,
+                                       const float* ys, const float* mesh_depth, Sampler* rngs, Segment* segs,
+                                       Counters& c) const {
     const bool display = st_.blend_space == BlendSpace::Display;
-    for (std::uint64_t e = offsets_[t]; e < offsets_[t + 1]; ++e) {
-        const ProjectedSplat& ps = splats_[entries_[e]];
-        if (!(ps.depth < mesh_depth)) break;  // the list is front to back
-        const float dx = x - ps.u, dy = y - ps.v;
-        if (std::abs(dx) > ps.half_extent || std::abs(dy) > ps.half_extent) continue;
-        const float power = -0.5f * (ps.conic[0] * dx * dx + ps.conic[2] * dy * dy) - ps.conic[1] * dx * dy;
-        if (power > 0.0f) continue;
-        const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power));
-        if (alpha < kMinAlpha) continue;
-        glm::vec3 color = ps.color;
-        const GaussianSet& set = *s_.gaussians[ps.set];
-        if (st_.meshes_shadow_gaussians) {
-            // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear light.
-            const float vis = shadow_.gaussian_light_visibility(set.world_center(ps.prim), rng, c);
-            if (!display) color *= vis;
-            else if (vis < 1.0f)
-                for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));
-        }
-        const float t_before = seg.transmittance;
-        seg.radiance += t_before * alpha * color;
-        seg.transmittance = t_before * (1.0f - alpha);
-        ++seg.gaussians;
-        ++c.gaussian_hits;
-        const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
-        const bool stop = seg.transmittance < st_.transmittance_threshold;
-        if (opaque_here || stop) {
-            // The point of the ray nearest the centre stands for the splat's place along the ray.
-            const float along = glm::dot(set.world_center(ps.prim) - ray.o, ray.d);
-            if (opaque_here) {
-                seg.depth = along;
-                const glm::vec3 n = set.flat ? set.world_normal(ps.prim) : -ray.d;
-                seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+    for (std::uint64_t e = offsets_[tile]; e < offsets_[tile + 1] && lanes; ++e) {
+        const std::uint32_t index = entries_[e];
+        const ProjectedSplat& ps = splats_[index];
+        for (std::uint32_t live = lanes; live; live &= live - 1) {
+            const int l = __builtin_ctz(live);
+            if (!(ps.depth < mesh_depth[l])) {  // the list is front to back: this lane is done
+                lanes &= ~(1u << l);
+                continue;
             }
-            if (stop) {
-                seg.terminated = true;
-                seg.end = along;
-                return;
+            const float dx = xs[l] - ps.u, dy = ys[l] - ps.v;
+            if (std::abs(dx) > ps.half_extent || std::abs(dy) > ps.half_extent) continue;
+            const float power = -0.5f * (ps.conic[0] * dx * dx + ps.conic[2] * dy * dy) - ps.conic[1] * dx * dy;
+            if (power > 0.0f) continue;
+            const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power));
+            if (alpha < kMinAlpha) continue;
+            const SplatShade& shade = shades_[index];
+            const GaussianSet& set = *s_.gaussians[shade.set];
+            glm::vec3 color = shade.color;
+            if (st_.meshes_shadow_gaussians) {
+                // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear
+                // light.
+                const float vis = shadow_.gaussian_light_visibility(set.world_center(shade.prim), rngs[l], c);
+                if (!display) color *= vis;
+                else if (vis < 1.0f)
+                    for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));
+            }
+            Segment& seg = segs[l];
+            const float t_before = seg.transmittance;
+            seg.radiance += t_before * alpha * color;
+            seg.transmittance = t_before * (1.0f - alpha);
+            ++seg.gaussians;
+            ++c.gaussian_hits;
+            const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
+            const bool stop = seg.transmittance < st_.transmittance_threshold;
+            if (opaque_here || stop) {
+                // The point of the ray nearest the centre stands for the splat's place along the ray.
+                const Ray& ray = rays[l];
+                const float along = glm::dot(set.world_center(shade.prim) - ray.o, ray.d);
+                if (opaque_here) {
+                    seg.depth = along;
+                    const glm::vec3 n = set.flat ? set.world_normal(shade.prim) : -ray.d;
+                    seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+                }
+                if (stop) {
+                    seg.terminated = true;
+                    seg.end = along;
+                    lanes &= ~(1u << l);
+                }
             }
         }
     }
@@ -304,15 +329,32 @@ void CameraSplatting::trace_packet(const Ray* rays, const bool* active, const fl
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
         rtcIntersect16(valid, s_.scene, &ctx, &rh);
     }
+    float mesh_depth[16];
+    std::size_t tiles[16];
+    std::uint32_t pending = 0;  // lanes whose tile is not composited yet
+    for (int l = 0; l < 16; ++l) {
+        if (!active[l]) continue;
+        const bool mesh = any_mesh && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
+        if (any_mesh) ++c.traced;
+        mesh_depth[l] = mesh ? view_depth(rays[l].o + rh.ray.tfar[l] * rays[l].d) : kInf;
+        tiles[l] = tile_of(xs[l], ys[l]);
+        pending |= 1u << l;
+    }
+    // The lanes of one tile together (all 16, unless jitter carried some samples over a tile's edge).
+    while (pending && !offsets_.empty()) {  // (no offsets: the pre-pass was cancelled)
+        const std::size_t tile = tiles[__builtin_ctz(pending)];
+        std::uint32_t group = 0;
+        for (std::uint32_t p = pending; p; p &= p - 1)
+            if (tiles[__builtin_ctz(p)] == tile) group |= 1u << __builtin_ctz(p);
+        composite(tile, group, rays, xs, ys, mesh_depth, rngs, segs, c);
+        pending &= ~group;
+    }
     for (int l = 0; l < 16; ++l) {
         if (!active[l]) continue;
         Segment& seg = segs[l];
         const bool mesh = any_mesh && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
-        if (any_mesh) ++c.traced;
-        const float t_mesh = mesh ? rh.ray.tfar[l] : kInf;
-        const float mesh_depth = mesh ? view_depth(rays[l].o + t_mesh * rays[l].d) : kInf;
-        composite(seg, rays[l], xs[l], ys[l], mesh_depth, rngs[l], c);
         if (seg.terminated || !mesh) continue;
+        const float t_mesh = rh.ray.tfar[l];
         // As GaussianSegmentTracer::record_mesh (every top-level geometry is an instance).
         seg.mesh = true;
         const unsigned inst = rh.hit.instID[0][l];

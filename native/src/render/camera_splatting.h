@@ -7,7 +7,8 @@
 // The model, that of the 3DGS rasterizer (Kerbl et al. 2023, §4 and §6; its CUDA forward.cu, computeCov2D and
 // renderCUDA):
 //   centre m (world), view-space p = W (m - o), view depth z;  pixel (u, v) = the camera's projection of p;
-//   2D covariance  Sigma' = J W A Sigma A^T W^T J^T + 0.3 I  (px^2), J the perspective Jacobian at p, its x/z and
+//   2D covariance  Sigma' = J W A Sigma A^T W^T J^T + 0.3 I  (px^2), Sigma the Gaussian's 3D covariance in either
+//   Gaussian mode (flat mode traces disks, but a viewer draws the whole Gaussian), J the perspective Jacobian at p, its x/z and
 //   y/z clamped to 1.3 times the frustum's half extent about its centre (forward.cu: 1.3 tan(fov / 2));
 //   alpha(x) = min(0.99, a exp(-1/2 d^T Sigma'^-1 d)), d = x - (u, v), skipped below 1/255, evaluated at each camera
 //   sample's own (jittered) position; cut outside the square of half side 3 sqrt(lambda_max(Sigma'));
@@ -22,8 +23,9 @@
 // The pre-pass, as the 3DGS tile rasterizer: every Gaussian projected in parallel, the visible ones sorted by depth,
 // binned into 16 x 16 pixel screen tiles (a tile's list is the ranks, in that sort, of the Gaussians whose square
 // touches it: 4 bytes an entry), each list in depth order. A camera sample reads the list of the tile under its
-// position. The tile grid covers the render region widened by the pixel filter's reach, so jittered samples always
-// find their tile.
+// position; the 16 samples of a 4 x 4 packet of camera rays mostly share a tile (the grid is aligned to the packets),
+// and read its list once, together. The tile grid covers the render region widened by the pixel filter's reach, so
+// jittered samples always find their tile.
 //
 // Applies when the camera is perspective and every Gaussian cloud is BAKED (effective shading): LIT and
 // BAKED_SHADOWED Gaussians are shaded per hit point along the ray and cannot join a screen-space list, so a scene
@@ -47,14 +49,17 @@
 
 namespace raysplats {
 
-// One Gaussian as the camera sees it, in depth order.
+// One Gaussian as the camera sees it, in depth order: what every camera sample reads (32 bytes, two to a cache line)...
 struct ProjectedSplat {
     float u, v;            // image position of the centre, pixels (x right, y down from the top-left corner)
     float conic[3];        // Sigma'^-1 = [[conic0, conic1], [conic1, conic2]], 1 / px^2
     float opacity;
     float depth;           // view depth of the centre (along the camera's -Z axis, camera-space units)
     float half_extent;     // half side of its square, pixels: 3 sqrt(lambda_max(Sigma'))
-    glm::vec3 color;       // in the render's blend space
+};
+// ... and what only the samples it covers read.
+struct SplatShade {
+    glm::vec3 color;          // in the render's blend space
     std::uint32_t set, prim;  // its GaussianSet and primitive (normal, centre, meshes_shadow_gaussians)
 };
 
@@ -82,8 +87,11 @@ public:
     static constexpr int kTileSize = 16;  // pixels, as the 3DGS rasterizer's BLOCK_X x BLOCK_Y
 
 private:
-    // Composites the splats of the tile under image position (x, y) nearer than `mesh_depth` (view depth) onto seg.
-    void composite(Segment& seg, const Ray& ray, float x, float y, float mesh_depth, Sampler& rng, Counters& c) const;
+    // Composites onto the segments of the lanes in `lanes` (a mask), whose samples all lie in tile `tile`, the
+    // tile's splats in front of each lane's `mesh_depth` (view depth): the list is read once for all of them.
+    void composite(std::size_t tile, std::uint32_t lanes, const Ray* rays, const float* xs, const float* ys,
+                   const float* mesh_depth, Sampler* rngs, Segment* segs, Counters& c) const;
+    std::size_t tile_of(float x, float y) const;
     float view_depth(const glm::vec3& world_point) const;
 
     const Scene::Impl& s_;
@@ -97,6 +105,7 @@ private:
     // The tile grid: tiles_x_ x tiles_y_ tiles of kTileSize pixels from (grid_x0_, grid_y0_).
     int grid_x0_ = 0, grid_y0_ = 0, tiles_x_ = 0, tiles_y_ = 0;
     std::vector<ProjectedSplat> splats_;    // visible Gaussians in (depth, set, prim) order
+    std::vector<SplatShade> shades_;        // theirs, in the same order
     std::vector<std::uint64_t> offsets_;    // tile t's entries are entries_[offsets_[t] .. offsets_[t + 1])
     std::vector<std::uint32_t> entries_;    // indices into splats_, ascending (= front to back) within a tile
 };

@@ -101,6 +101,10 @@ MIN_PSNR = {"small_sh3_inria.ply": 30.0, "donut_sh0.ply": 30.0, "unicorn_sh3_reo
             "guitar_supersplat.compressed.ply": 25.0}
 # Azimuth and elevation (degrees) of the two views around each scene's median, at DISTANCE x its 10-90 % extent.
 VIEWS = {"front": (0.0, 15.0), "side": (120.0, 35.0)}
+# Camera-ray splatting (RenderSettings::camera_ray_splatting) draws camera rays' Gaussians with the rasterizer's model:
+# the issue asks 30 dB on every view; what is left is float rounding and the two stop rules (62-80 dB, docstring), so
+# 50 dB holds it to being the same model.
+MIN_PSNR_SPLATTING = 50.0
 DISTANCE = 1.3
 
 
@@ -152,8 +156,8 @@ def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend
     return ewa.linear_to_srgb(rgba[..., :3])  # as Blender's Standard view transform shows the linear film
 
 
-def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR")):
-    """{(scene, view, mode, space): PSNR}."""
+def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR"), splattings=(False,)):
+    """{(scene, view, mode, space, camera_ray_splatting): PSNR}."""
     results = {}
     fx = WIDTH * LENS / SENSOR
     for name in SCENES:
@@ -163,8 +167,10 @@ def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR"
             reference = ewa.rasterize(splats, world_to_view, fx, fx, WIDTH, HEIGHT, near=near)
             for mode in modes:
                 for space in spaces:
-                    image = render_raysplats(native, splats, camera_to_world, near, mode, space)
-                    results[(name, view, mode, space)] = ewa.psnr(reference, image)
+                    for splatting in splattings:
+                        image = render_raysplats(native, splats, camera_to_world, near, mode, space,
+                                                 splatting=splatting)
+                        results[(name, view, mode, space, splatting)] = ewa.psnr(reference, image)
     return results
 
 
@@ -232,14 +238,32 @@ class ViewerAgreement(unittest.TestCase):
     def test_display_blend_space_matches_the_viewer(self):
         import _native
         results = measure(_native, DATA_DIR)
-        for (name, view, mode, space), value in results.items():
+        for (name, view, mode, space, _), value in results.items():
             if space == "DISPLAY":
                 self.assertGreaterEqual(value, MIN_PSNR[name], f"{name} {view} {mode}: {value:.2f} dB")
         # Linear compositing is the grey halo the issue reported: the hazy unicorn falls short by several dB.
         for view in VIEWS:
-            linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR")]
-            display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY")]
+            linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR", False)]
+            display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY", False)]
             self.assertLess(linear, display - 3.0, f"unicorn {view}: linear {linear:.2f} dB, display {display:.2f} dB")
+
+    def test_camera_ray_splatting_matches_the_viewer(self):
+        # With camera-ray splatting every camera ray draws the Gaussians as the rasterizer does: every view of every
+        # scene, the two that tracing leaves at 26 dB included, agrees to MIN_PSNR_SPLATTING (the issue asks 30 dB; the
+        # figures are 62-80 dB, the docstring's table). Volumetric and flat: splatting draws the flat disk's footprint
+        # (its two largest axes), so flat mode agrees less where the third axis is not thin.
+        import _native
+        results = measure(_native, DATA_DIR, modes=("VOLUMETRIC",), spaces=("DISPLAY",), splattings=(True,))
+        for (name, view, mode, space, _), value in results.items():
+            self.assertGreaterEqual(value, MIN_PSNR_SPLATTING, f"{name} {view} {mode} splatted: {value:.2f} dB")
+        # It is the setting that does it: the render says it splatted, and without it small.splat is still traced.
+        splats = ewa.read_splats(os.path.join(DATA_DIR, "small.splat"))
+        camera_to_world, _, near = view_camera(splats, "front")
+        for splatting in (False, True):
+            film = {}
+            render_raysplats(_native, splats, camera_to_world, near, "VOLUMETRIC", "DISPLAY", WIDTH // 4, HEIGHT // 4,
+                             splatting=splatting, film=film)
+            self.assertEqual(film["camera_ray_splatting"], splatting)
 
     def test_engine_is_the_exact_ray_model(self):
         # What the figures above measure is the difference between two models, not a defect of either: the engine
@@ -259,13 +283,15 @@ class ViewerAgreement(unittest.TestCase):
 def print_table(module_dir, data_dir):
     sys.path.insert(0, module_dir)
     import _native
-    results = measure(_native, data_dir, modes=("VOLUMETRIC", "FLAT"))
-    print(f"{'scene':<28} {'view':<6} {'mode':<11} {'LINEAR (before)':>16} {'DISPLAY (now)':>14}")
+    results = measure(_native, data_dir, modes=("VOLUMETRIC", "FLAT"), splattings=(False, True))
+    print(f"{'scene':<34} {'view':<6} {'mode':<11} {'LINEAR traced':>14} {'DISPLAY traced':>15} "
+          f"{'DISPLAY splatted':>17}")
     for name in SCENES:
         for view in VIEWS:
             for mode in ("VOLUMETRIC", "FLAT"):
-                print(f"{name:<28} {view:<6} {mode:<11} {results[(name, view, mode, 'LINEAR')]:>16.2f} "
-                      f"{results[(name, view, mode, 'DISPLAY')]:>14.2f}")
+                print(f"{name:<34} {view:<6} {mode:<11} {results[(name, view, mode, 'LINEAR', False)]:>14.2f} "
+                      f"{results[(name, view, mode, 'DISPLAY', False)]:>15.2f} "
+                      f"{results[(name, view, mode, 'DISPLAY', True)]:>17.2f}")
 
 
 def print_attribution(module_dir, data_dir, names):
