@@ -66,6 +66,21 @@ order 33.9 / 29.5, front / side). Both parts are what ray tracing 3D Gaussians i
   reference) give the same values (rotations to float rounding), and the test hands the reference's to both.
 The views are the scenes' fixed two (front, side), not chosen to pass; the thresholds of small.splat and guitar are
 set below their figures with this explanation.
+
+Camera-ray splatting (RenderSettings::camera_ray_splatting, off by default) is the answer to both parts: camera rays
+draw the Gaussians with the rasterizer's model (EWA footprint with the dilation, one sort by centre depth), so what is
+left is float rounding and the stop rules (the engine composites the Gaussian that takes T below 1e-4, the rasterizer
+stops before it). --table, 640 x 480, DISPLAY, dB against the EWA rasterizer, traced (today's default) / splatted:
+
+    scene                             front (traced / splatted)   side (traced / splatted)
+    small_sh3_inria.ply               30.9 / 76.3                 32.6 / 80.0
+    donut_sh0.ply                     36.4 / 70.5                 32.6 / 65.9
+    unicorn_sh3_reordered.ply         33.1 / 72.1                 33.6 / 71.6
+    small.splat                       26.1 / 67.7                 26.5 / 61.8
+    guitar_supersplat.compressed.ply  35.9 / 75.4                 26.3 / 70.9
+
+(volumetric; in flat mode the splatted figures are the same, as the footprint is the whole 3D Gaussian's in both modes,
+while flat mode traced is 24.5-35.6 dB.)
 """
 import math
 import os
@@ -250,10 +265,10 @@ class ViewerAgreement(unittest.TestCase):
     def test_camera_ray_splatting_matches_the_viewer(self):
         # With camera-ray splatting every camera ray draws the Gaussians as the rasterizer does: every view of every
         # scene, the two that tracing leaves at 26 dB included, agrees to MIN_PSNR_SPLATTING (the issue asks 30 dB; the
-        # figures are 62-80 dB, the docstring's table). Volumetric and flat: splatting draws the flat disk's footprint
-        # (its two largest axes), so flat mode agrees less where the third axis is not thin.
+        # figures are 62-80 dB, the docstring's table). Flat mode too (the add-on's default): the footprint is the
+        # whole 3D Gaussian's in both modes.
         import _native
-        results = measure(_native, DATA_DIR, modes=("VOLUMETRIC",), spaces=("DISPLAY",), splattings=(True,))
+        results = measure(_native, DATA_DIR, modes=("VOLUMETRIC", "FLAT"), spaces=("DISPLAY",), splattings=(True,))
         for (name, view, mode, space, _), value in results.items():
             self.assertGreaterEqual(value, MIN_PSNR_SPLATTING, f"{name} {view} {mode} splatted: {value:.2f} dB")
         # It is the setting that does it: the render says it splatted, and without it small.splat is still traced.
