@@ -246,6 +246,31 @@ TEST(CameraSplatting, FallsBackToTracingBitForBit) {
     EXPECT_NE(baked_on.rgba(), lit_on.rgba());
 }
 
+// A lens shift moves the image plane, not the view: the splatted image moves by the shift, in whole pixels here
+// (shift_x 4 / 33 of the fitted width: 4 pixels to the left), and is otherwise the same (1e-5).
+TEST(CameraSplatting, LensShiftTranslatesTheImage) {
+    const float angle = 0.4f;
+    const float q[4] = {std::cos(angle / 2), 0.0f, std::sin(angle / 2), 0.0f};
+    const float pos[3] = {0.3f, 0.1f, -3.0f}, scale[3] = {0.3f, 0.1f, 0.2f}, rgb[3] = {0.2f, 0.9f, 0.4f};
+    GaussianCloud cloud;
+    add_gaussian(cloud, pos, q, scale, 0.9f, rgb);
+    Scene scene;
+    scene.add_gaussians(cloud);
+    scene.set_world(black_world());
+    Camera cam = pinhole();
+    const Film centred = render(scene, cam, splat_settings(true));
+    cam.shift_x = 4.0f / float(kSize);
+    const Film shifted = render(scene, cam, splat_settings(true));
+    int covered = 0;
+    for (int j = 0; j < kSize; ++j)
+        for (int i = 0; i + 4 < kSize; ++i) {
+            const float a = shifted.alpha()[std::size_t(j) * kSize + i];
+            ASSERT_NEAR(a, centred.alpha()[std::size_t(j) * kSize + i + 4], 1e-5) << i << "," << j;
+            covered += a > 0.1f;
+        }
+    EXPECT_GT(covered, 20);
+}
+
 // Gaussians nearer than the camera's clip start are cut (the rasterizer's near cut), as are those beyond its end.
 TEST(CameraSplatting, ClipRangeCutsCentres) {
     const float q[4] = {1, 0, 0, 0}, s[3] = {0.3f, 0.3f, 0.3f}, pos[3] = {0, 0, -3}, rgb[3] = {1, 1, 1};
