@@ -271,6 +271,39 @@ TEST(CameraSplatting, LensShiftTranslatesTheImage) {
     EXPECT_GT(covered, 20);
 }
 
+// meshes_shadow_gaussians: a splatted Gaussian is darkened by the lights' visibility from its centre as a traced
+// one is. A sun shining along +Y and a box under the Gaussian (out of the camera's view at the centre pixel): where
+// the box hides the sun the centre pixel is black, without it the Gaussian's colour, and splatted equals traced there
+// (at the centre both give alpha = opacity).
+TEST(CameraSplatting, MeshesShadowGaussiansAsTraced) {
+    const float q[4] = {1, 0, 0, 0}, s[3] = {0.2f, 0.2f, 0.2f}, pos[3] = {0, 0, -3}, rgb[3] = {0.8f, 0.6f, 0.4f};
+    GaussianCloud cloud;
+    add_gaussian(cloud, pos, q, s, 0.7f, rgb);
+    const float lo[3] = {-1.0f, -1.2f, -4.0f}, hi[3] = {1.0f, -1.0f, -2.0f};
+    for (bool blocked : {false, true}) {
+        Scene scene;
+        const std::uint32_t material = scene.add_material(Material{});
+        const TestMesh box = make_box(lo, hi, material);
+        if (blocked) scene.add_mesh(box.desc());
+        scene.add_gaussians(cloud);
+        scene.set_world(black_world());
+        Light sun;
+        sun.type = LightType::Sun;
+        sun.power = 1.0f;
+        sun.light_to_world = Matrix4::rotation(1.5707963f, 1, 0, 0);  // local -Z to world +Y
+        scene.add_light(sun);
+        RenderSettings on = splat_settings(true), off = splat_settings(false);
+        on.meshes_shadow_gaussians = off.meshes_shadow_gaussians = true;
+        const Film splatted = render(scene, pinhole(), on), traced = render(scene, pinhole(), off);
+        ASSERT_TRUE(splatted.stats.camera_ray_splatting);
+        const std::size_t p = std::size_t(kSize / 2) * kSize + kSize / 2;
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(splatted.rgba()[4 * p + c], traced.rgba()[4 * p + c], 1e-4) << "blocked " << blocked;
+            EXPECT_NEAR(splatted.rgba()[4 * p + c], blocked ? 0.0 : srgb_to_linear_ref(0.7 * rgb[c]), 2e-4);
+        }
+    }
+}
+
 // Gaussians nearer than the camera's clip start are cut (the rasterizer's near cut), as are those beyond its end.
 TEST(CameraSplatting, ClipRangeCutsCentres) {
     const float q[4] = {1, 0, 0, 0}, s[3] = {0.3f, 0.3f, 0.3f}, pos[3] = {0, 0, -3}, rgb[3] = {1, 1, 1};
