@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <string>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -10,6 +12,7 @@
 
 #include "gaussian_callbacks.h"
 #include "gaussian_primitives.h"
+#include "raysplats/errors.h"
 
 namespace raysplats {
 
@@ -27,15 +30,9 @@ int filter_margin(const RenderSettings& st) {
     return (reach + 3) / 4 * 4;
 }
 
-// A visible Gaussian's sort key: its depth, then its place in the scene (ties broken the same in every run).
-struct DepthKey {
-    float depth;
-    std::uint32_t set, prim;
-    bool operator<(const DepthKey& o) const {
-        if (depth != o.depth) return depth < o.depth;
-        return set != o.set ? set < o.set : prim < o.prim;
-    }
-};
+// Not a rank (rank_of), not a key (keys).
+constexpr std::uint32_t kNotVisible = 0xffffffffu;
+constexpr std::uint64_t kNotVisibleKey = ~std::uint64_t(0);
 
 }  // namespace
 
@@ -135,55 +132,63 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         return true;
     };
 
-    // 1. The visible Gaussians' keys, then the depth sort.
-    std::vector<DepthKey> keys;
-    {
-        std::size_t total = 0;
-        for (const auto& set : s_.gaussians) total += set->prims.size();
-        keys.resize(total);
-        std::size_t base = 0;
-        std::vector<std::uint8_t> visible(total, 0);
-        for (const auto& set_ptr : s_.gaussians) {
-            const GaussianSet& set = *set_ptr;
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.prims.size(), 4096),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  if (cancelled()) return;
-                                  for (std::size_t j = r.begin(); j != r.end(); ++j) {
-                                      ProjectedSplat ps;
-                                      if (!project(set, std::uint32_t(j), ps)) continue;
-                                      keys[base + j] = DepthKey{ps.depth, set.index, std::uint32_t(j)};
-                                      visible[base + j] = 1;
-                                  }
-                              });
-            base += set.prims.size();
-        }
-        if (cancelled()) return;
-        std::size_t kept = 0;
-        for (std::size_t i = 0; i < total; ++i)
-            if (visible[i]) keys[kept++] = keys[i];
-        keys.resize(kept);
-        keys.shrink_to_fit();
+    // Every Gaussian of the scene has a global index: primitive j of set k is set_base[k] + j.
+    std::vector<std::size_t> set_base(s_.gaussians.size() + 1, 0);
+    for (std::size_t k = 0; k < s_.gaussians.size(); ++k) set_base[k + 1] = set_base[k] + s_.gaussians[k]->prims.size();
+    const std::size_t total = set_base.back();
+    if (total >= std::size_t(kNotVisible))
+        throw Error("camera-ray splatting: " + std::to_string(total) + " Gaussians are more than it indexes (2^32 - 1)");
+
+    // 1. The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
+    // by scene order), sorted.
+    std::vector<std::uint64_t> keys(total, kNotVisibleKey);
+    for (std::size_t k = 0; k < s_.gaussians.size(); ++k) {
+        const GaussianSet& set = *s_.gaussians[k];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.prims.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              if (cancelled()) return;
+                              for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                                  ProjectedSplat ps;
+                                  if (!project(set, std::uint32_t(j), ps)) continue;
+                                  std::uint32_t depth_bits;
+                                  std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
+                                  keys[set_base[k] + j] = std::uint64_t(depth_bits) << 32 | (set_base[k] + j);
+                              }
+                          });
     }
+    if (cancelled()) return;
+    keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
     tbb::parallel_sort(keys.begin(), keys.end());
     if (cancelled()) return;
 
-    // 2. The splats in depth order, with their colours (the same for every camera sample).
+    // 2. The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
+    // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
+    std::vector<std::uint32_t> rank_of(total, kNotVisible);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
+    });
     splats_.resize(keys.size());
     shades_.resize(keys.size());
-    const glm::vec3 origin = camera_origin_;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        if (cancelled()) return;
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const GaussianSet& set = *s_.gaussians[keys[i].set];
-            project(set, keys[i].prim, splats_[i]);
-            SplatShade& shade = shades_[i];
-            shade.color = display ? set.display_color(keys[i].prim, origin) : set.color(keys[i].prim, origin);
-            shade.set = keys[i].set;
-            shade.prim = keys[i].prim;
-        }
-    });
     keys.clear();
     keys.shrink_to_fit();
+    const glm::vec3 origin = camera_origin_;
+    for (std::size_t k = 0; k < s_.gaussians.size(); ++k) {
+        const GaussianSet& set = *s_.gaussians[k];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.prims.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              if (cancelled()) return;
+                              for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                                  const std::uint32_t rank = rank_of[set_base[k] + j];
+                                  if (rank == kNotVisible) continue;
+                                  const auto prim = std::uint32_t(j);
+                                  project(set, prim, splats_[rank]);
+                                  SplatShade& shade = shades_[rank];
+                                  shade.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
+                                  shade.set = set.index;
+                                  shade.prim = prim;
+                              }
+                          });
+    }
     if (cancelled()) return;
 
     // 3. Tile lists: count, offsets, fill, and each list back in depth order.
