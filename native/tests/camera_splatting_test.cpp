@@ -50,7 +50,9 @@ RenderSettings splat_settings(bool splatting, BlendSpace space = BlendSpace::Dis
 // and forward.cu in OpenCV view space (x right, y down, z forward): Sigma' = J Sigma J^T + 0.3 I, J the perspective
 // Jacobian at the centre (not clamped here: the centre is well inside the frustum). `axes`: how many of the Gaussian's
 // axes (largest first) its covariance has (3, or 2 for the flat disk).
-double ewa_alpha(const float pos[3], const float q[4], const float scale[3], float opacity, int axes, int i, int j) {
+double ewa_alpha(const float pos[3], const float q[4], const float scale[3], float opacity, int axes, int i, int j,
+                 int size = kSize) {
+    const double focal = size * kLens / kSensor;
     const double w = q[0], x = q[1], y = q[2], z = q[3];
     const double r[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
                             {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
@@ -69,7 +71,7 @@ double ewa_alpha(const float pos[3], const float q[4], const float scale[3], flo
     for (int m = 0; m < 3; ++m)
         for (int n = 0; n < 3; ++n) s[m][n] = flip[m] * flip[n] * sigma[m][n];
     const double px = pos[0], py = -pos[1], pz = -pos[2];
-    const double jac[2][3] = {{kFocalPx / pz, 0, -kFocalPx * px / (pz * pz)}, {0, kFocalPx / pz, -kFocalPx * py / (pz * pz)}};
+    const double jac[2][3] = {{focal / pz, 0, -focal * px / (pz * pz)}, {0, focal / pz, -focal * py / (pz * pz)}};
     double cov[2][2] = {};
     for (int a = 0; a < 2; ++a)
         for (int b = 0; b < 2; ++b)
@@ -78,7 +80,7 @@ double ewa_alpha(const float pos[3], const float q[4], const float scale[3], flo
     cov[0][0] += 0.3;
     cov[1][1] += 0.3;
     const double det = cov[0][0] * cov[1][1] - cov[0][1] * cov[0][1];
-    const double u = kFocalPx * px / pz + 0.5 * kSize, v = kFocalPx * py / pz + 0.5 * kSize;
+    const double u = focal * px / pz + 0.5 * size, v = focal * py / pz + 0.5 * size;
     const double dx = i + 0.5 - u, dy = j + 0.5 - v;
     const double power = -0.5 * (cov[1][1] * dx * dx + cov[0][0] * dy * dy - 2 * cov[0][1] * dx * dy) / det;
     return std::min(0.99, opacity * std::exp(power));
@@ -131,6 +133,42 @@ TEST(CameraSplatting, SingleGaussianIsTheEwaFootprint) {
                                                                      ewa_alpha(pos, q, scale, a, 2, i, j)));
         EXPECT_GT(disk_difference, 0.01);
     }
+}
+
+// A long, thin, faint Gaussian across the image: its tile lists hold only the tiles where it can reach alpha 1/255,
+// far fewer than its 3-sigma square covers, and every pixel is still the EWA footprint's.
+TEST(CameraSplatting, ThinGaussiansBinOnlyWhereTheyShow) {
+    const int size = 255;
+    const float angle = 0.785398f;  // 45 degrees about the view axis: the diagonal of its square
+    const float q[4] = {std::cos(angle / 2), 0.0f, 0.0f, std::sin(angle / 2)};
+    const float pos[3] = {0.0f, 0.0f, -3.0f}, scale[3] = {0.6f, 0.004f, 0.004f}, rgb[3] = {1, 1, 1};
+    const float a = 0.2f;
+    GaussianCloud cloud;
+    add_gaussian(cloud, pos, q, scale, a, rgb);
+    Scene scene;
+    scene.add_gaussians(cloud);
+    scene.set_world(black_world());
+    RenderSettings st = splat_settings(true);
+    st.width = st.height = size;
+    const Film film = render(scene, pinhole(), st);
+    ASSERT_EQ(film.stats.splats, 1u);
+    // Its square: 3 sigma of the long axis, 0.6 * f / 3 * 3 = 212 px half side at 45 degrees -> the whole 16 x 16
+    // tiles of the image; the ellipse crosses about a diagonal's worth of them.
+    const std::uint64_t square_tiles = 17 * 17;
+    EXPECT_LT(film.stats.splat_tile_entries, square_tiles / 3);
+    int checked = 0;
+    for (int j = 0; j < size; ++j)
+        for (int i = 0; i < size; ++i) {
+            double expected = ewa_alpha(pos, q, scale, a, 3, i, j, size);
+            if (std::abs(expected - 1.0 / 255.0) < 1e-4) continue;
+            if (expected < 1.0 / 255.0) expected = 0.0;
+            // Relative 2 %: far out along a thin Gaussian at 45 degrees the float conic's terms (~1e5) cancel to a
+            // power of a few units, as in the 3DGS rasterizer's float arithmetic; a missing tile would give 0.
+            ASSERT_NEAR(film.alpha()[std::size_t(j) * size + i], expected, 1e-5 + 0.02 * expected)
+                << "pixel " << i << "," << j;
+            checked += expected > 0.0;
+        }
+    EXPECT_GT(checked, 300);
 }
 
 // Two Gaussians on the optical axis, in two clouds, the far one (blue) given first: the nearer centre (red) is

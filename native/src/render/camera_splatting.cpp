@@ -193,22 +193,39 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
 
     // 3. Tile lists: count, offsets, fill, and each list back in depth order.
     const std::size_t tile_count = std::size_t(tiles_x_) * std::size_t(tiles_y_);
-    auto tile_range = [&](const ProjectedSplat& ps, int& tx0, int& ty0, int& tx1, int& ty1) {
-        tx0 = std::max(0, int(std::floor((ps.u - ps.half_extent - float(grid_x0_)) / kTileSize)));
-        ty0 = std::max(0, int(std::floor((ps.v - ps.half_extent - float(grid_y0_)) / kTileSize)));
-        tx1 = std::min(tiles_x_ - 1, int(std::floor((ps.u + ps.half_extent - float(grid_x0_)) / kTileSize)));
-        ty1 = std::min(tiles_y_ - 1, int(std::floor((ps.v + ps.half_extent - float(grid_y0_)) / kTileSize)));
+    // The tiles a splat can draw in: those its square touches where alpha can reach 1/255, i.e. where
+    // q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile. Outside that ellipse every
+    // sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps thin and faint
+    // Gaussians out of most of their square's tiles.
+    auto for_each_tile = [&](const ProjectedSplat& ps, auto&& visit) {
+        const int tx0 = std::max(0, int(std::floor((ps.u - ps.half_extent - float(grid_x0_)) / kTileSize)));
+        const int ty0 = std::max(0, int(std::floor((ps.v - ps.half_extent - float(grid_y0_)) / kTileSize)));
+        const int tx1 = std::min(tiles_x_ - 1, int(std::floor((ps.u + ps.half_extent - float(grid_x0_)) / kTileSize)));
+        const int ty1 = std::min(tiles_y_ - 1, int(std::floor((ps.v + ps.half_extent - float(grid_y0_)) / kTileSize)));
+        // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
+        const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
+        const double a = ps.conic[0], b = ps.conic[1], c = ps.conic[2];
+        auto q = [&](double dx, double dy) { return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy; };
+        for (int ty = ty0; ty <= ty1; ++ty) {
+            const double ly = double(grid_y0_ + ty * kTileSize) - ps.v, hy = ly + kTileSize;
+            for (int tx = tx0; tx <= tx1; ++tx) {
+                const double lx = double(grid_x0_ + tx * kTileSize) - ps.u, hx = lx + kTileSize;
+                // The minimum of the convex q over the tile: 0 when the centre is inside, else on an edge, where q is
+                // a parabola in the free coordinate (minimised at -b x / c, or -b y / a, clamped to the edge).
+                double least = 0.0;
+                if (!(lx <= 0.0 && 0.0 <= hx && ly <= 0.0 && 0.0 <= hy)) {
+                    least = std::min(std::min(q(lx, std::clamp(-b * lx / c, ly, hy)), q(hx, std::clamp(-b * hx / c, ly, hy))),
+                                     std::min(q(std::clamp(-b * ly / a, lx, hx), ly), q(std::clamp(-b * hy / a, lx, hx), hy)));
+                }
+                if (least <= reach) visit(std::size_t(ty) * tiles_x_ + tx);
+            }
+        }
     };
     std::vector<std::atomic<std::uint32_t>> counts(tile_count);
     for (auto& n : counts) n.store(0, std::memory_order_relaxed);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, splats_.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            int tx0, ty0, tx1, ty1;
-            tile_range(splats_[i], tx0, ty0, tx1, ty1);
-            for (int ty = ty0; ty <= ty1; ++ty)
-                for (int tx = tx0; tx <= tx1; ++tx)
-                    counts[std::size_t(ty) * tiles_x_ + tx].fetch_add(1, std::memory_order_relaxed);
-        }
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            for_each_tile(splats_[i], [&](std::size_t t) { counts[t].fetch_add(1, std::memory_order_relaxed); });
     });
     if (cancelled()) return;
     offsets_.assign(tile_count + 1, 0);
@@ -216,15 +233,10 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
     entries_.resize(offsets_[tile_count]);
     for (std::size_t t = 0; t < tile_count; ++t) counts[t].store(0, std::memory_order_relaxed);  // the fill cursors
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, splats_.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            int tx0, ty0, tx1, ty1;
-            tile_range(splats_[i], tx0, ty0, tx1, ty1);
-            for (int ty = ty0; ty <= ty1; ++ty)
-                for (int tx = tx0; tx <= tx1; ++tx) {
-                    const std::size_t t = std::size_t(ty) * tiles_x_ + tx;
-                    entries_[offsets_[t] + counts[t].fetch_add(1, std::memory_order_relaxed)] = std::uint32_t(i);
-                }
-        }
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            for_each_tile(splats_[i], [&](std::size_t t) {
+                entries_[offsets_[t] + counts[t].fetch_add(1, std::memory_order_relaxed)] = std::uint32_t(i);
+            });
     });
     if (cancelled()) return;
     // Filled in any order by the threads: sorting each list's indices restores the depth order (deterministic).
