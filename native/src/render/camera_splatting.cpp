@@ -84,7 +84,8 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         const glm::vec3 p = world_to_camera_ * (set.world_center(prim) - camera_origin_);
         const float z = -p.z;
         if (!(z > near && z < far)) return false;
-        // Sigma = L L^T in the cloud's frame, L = M^-1 (M: rows 0..2 of the primitive; flat: the disk's two axes).
+        // Sigma = L L^T in the cloud's frame, L = M^-1 (M: rows 0..2 of the primitive, GaussianPrimitive), whose
+        // columns are the Gaussian's axes times their scales.
         glm::mat3 m;
         m[0] = glm::vec3(g.row0.x, g.row1.x, g.row2.x);
         m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
