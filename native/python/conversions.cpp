@@ -159,6 +159,11 @@ py::dict film_to_dict(Film&& film) {
     d["render_seconds"] = film.stats.render_seconds;
     d["camera_rays"] = film.stats.camera_rays;
     d["gaussian_hits"] = film.stats.gaussian_hits;
+    d["camera_ray_splatting"] = film.stats.camera_ray_splatting;
+    d["splat_prepass_seconds"] = film.stats.splat_prepass_seconds;
+    d["splats"] = film.stats.splats;
+    d["splat_tile_entries"] = film.stats.splat_tile_entries;
+    d["splat_bytes"] = film.stats.splat_bytes;
     // One array per film channel, (h, w) for one component and (h, w, c) for more.
     for (const FilmChannelInfo& info : film_channels()) {
         const int c = info.component_count();

@@ -50,6 +50,7 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "region_height", std::int64_t(40));
     table.set(s, "gaussian_shading", std::string("BAKED_SHADOWED"));
     table.set(s, "blend_space", std::string("LINEAR"));
+    table.set(s, "camera_ray_splatting", true);
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -67,10 +68,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_EQ(s.region_x + s.region_y + s.region_width + s.region_height, 100);
     EXPECT_EQ(s.gaussian_shading, GaussianShading::BakedShadowed);
     EXPECT_EQ(s.blend_space, BlendSpace::Linear);
+    EXPECT_TRUE(s.camera_ray_splatting);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 27u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 28u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

@@ -16,9 +16,10 @@ UPDATE_SECONDS = 1.0
 
 # Diagnostics of the last final render, for status displays and tests: the samples of each partial result shown
 # (with its time from the render's start), and the samples and cancel state of the image kept, its mean samples per
-# pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h).
+# pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h), and
+# whether camera-ray splatting drew the camera rays (with its pre-pass's time).
 last_render = {"partial_results": [], "samples": 0, "cancelled": False, "mean_samples": 0.0, "camera_rays": 0,
-               "region": None, "render_seconds": 0.0}
+               "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "splat_prepass_seconds": 0.0}
 
 
 def _border(scene, width, height):
@@ -91,6 +92,9 @@ def render_final(engine, depsgraph):
               f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''} "
               f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
               f"{stats.triangles:,} triangles")
+        if settings.camera_ray_splatting and not film["camera_ray_splatting"]:
+            engine.report({"WARNING"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
+                                       "this render's camera rays were ray traced")
         passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
         # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now
@@ -101,5 +105,7 @@ def render_final(engine, depsgraph):
         raise
     engine.end_result(result)
     last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples,
-                       camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"])
+                       camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"],
+                       camera_ray_splatting=film["camera_ray_splatting"],
+                       splat_prepass_seconds=film["splat_prepass_seconds"])
     engine.update_progress(1.0)

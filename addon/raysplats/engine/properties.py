@@ -63,6 +63,13 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                ("BAKED_SHADOWED", "Baked + Shadows", "The captured light, darkened where meshes and splats hide the "
                                                      "scene's lights")),
         description="How splats' colours are produced (objects can override it in their Gaussian Splats panel)")
+    # Off by default: the traced image (the exact 3D response of each Gaussian along each ray) stays the default.
+    camera_ray_splatting: BoolProperty(
+        name="Camera Rays as Splats", default=False,
+        description="Draw the splats that camera rays see as splat viewers draw them (each Gaussian's projected "
+                    "footprint, in the order of centre depth), so an unedited scene looks exactly as in its viewer; "
+                    "meshes, reflections, refraction and shadows are ray traced as before. Perspective cameras and "
+                    "Baked splats only: with Lit or Baked + Shadows objects camera rays stay traced")
     meshes_shadow_gaussians: BoolProperty(
         name="Meshes Shadow Gaussians", default=False,
         description="Baked splats: darken Gaussians whose centres meshes hide from the lights (Baked + Shadows "

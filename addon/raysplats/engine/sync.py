@@ -475,7 +475,7 @@ def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False
     values = {
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
         "seed": settings.seed + seed_offset, "compositing": settings.compositing,
-        "blend_space": settings.blend_space,
+        "blend_space": settings.blend_space, "camera_ray_splatting": settings.camera_ray_splatting,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
         "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,
         "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,

@@ -60,6 +60,10 @@ class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
         layout.prop(settings, "gaussian_mode")
         layout.prop(settings, "compositing")
         layout.prop(settings, "blend_space")
+        # Splatting draws only Baked splats (the core keeps camera rays traced when any object is relit).
+        row = layout.row()
+        row.active = settings.gaussian_shading == "BAKED"
+        row.prop(settings, "camera_ray_splatting")
         layout.prop(settings, "transmittance_threshold")
         layout.prop(settings, "gaussian_shading")
         row = layout.row()

@@ -83,6 +83,21 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
     }
 }
 
+CameraRayGenerator::PinholeProjection CameraRayGenerator::pinhole_projection() const {
+    // Inverse of operator()'s perspective mapping: X / z = (2 x / w - 1) half_w + shift_x extent, and Y / z likewise
+    // with the image's y growing down.
+    PinholeProjection p;
+    p.half_width_tan = half_w_;
+    p.half_height_tan = half_h_;
+    p.center_x_tan = camera_.shift_x * extent_;
+    p.center_y_tan = camera_.shift_y * extent_;
+    p.fx = 0.5f * width_ / half_w_;
+    p.fy = 0.5f * height_ / half_h_;
+    p.cx = 0.5f * width_ - p.center_x_tan * p.fx;
+    p.cy = 0.5f * height_ + p.center_y_tan * p.fy;
+    return p;
+}
+
 CameraRay CameraRayGenerator::operator()(float x, float y) const {
     const Camera& c = camera_;
     CameraRay ray{};

@@ -15,6 +15,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "camera_splatting.h"
 #include "gaussian_segment_tracer.h"
 #include "path_integrator.h"
 #include "pixel_filter.h"
@@ -139,6 +140,18 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     const PathIntegrator integrator(impl, settings, tracer, shadow);
     const CameraRayGenerator camera_rays(camera, w, h);
     const PixelFilterSampler pixel_filter(settings.pixel_filter, settings.filter_width);
+    // Camera-ray splatting: its pre-pass once per render (per camera), before any tile.
+    std::unique_ptr<const CameraSplatting> splatting;
+    if (CameraSplatting::applies(impl, settings, camera, tracer.shader())) {
+        const auto prepass_start = std::chrono::steady_clock::now();
+        splatting = std::make_unique<const CameraSplatting>(impl, settings, camera, shadow, cancel);
+        film.stats.splat_prepass_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - prepass_start).count();
+        film.stats.camera_ray_splatting = true;
+        film.stats.splats = splatting->splat_count();
+        film.stats.splat_tile_entries = splatting->tile_entry_count();
+        film.stats.splat_bytes = splatting->memory_bytes();
+    }
     // Not in stochastic mode: a segment ends at a random accepted Gaussian, which its neighbours' do not predict
     // (showroom_1.5M: 10-16 % of the rays had to go on, and the frame was slower at every margin tried).
     const bool speculate = settings.speculative_ends && settings.compositing == Compositing::Sorted;
@@ -172,6 +185,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                 Sampler rngs[16];  // seeded below for the packet's pixels (the others are never used)
                 Segment segs[16];
                 int lane_sample[16];
+                float sample_x[16], sample_y[16];  // the samples' image positions (camera-ray splatting)
                 bool any = false;
                 for (int l = 0; l < 16; ++l) {
                     const int x = bx + (l & 3), y = by + (l >> 2);
@@ -187,6 +201,8 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                         jx = pixel_filter.position(rngs[l].next());
                         jy = pixel_filter.position(rngs[l].next());
                     }
+                    sample_x[l] = float(x) + jx;
+                    sample_y[l] = float(y) + jy;
                     const CameraRay cr = camera_rays(x + jx, y + jy);
                     if (!cr.valid) {
                         tile.samples.add_empty_sample(x, y);
@@ -208,7 +224,8 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     // (Not before the ray's own start: neighbours' clip starts differ.)
                     if (known * kSpeculativeMargin > rays[l].tmin) ends[l] = known * kSpeculativeMargin;
                 }
-                tracer.trace_packet(rays, active, ends, rngs, segs, counters);
+                if (splatting) splatting->trace_packet(rays, active, sample_x, sample_y, rngs, segs, counters);
+                else tracer.trace_packet(rays, active, ends, rngs, segs, counters);
                 for (int l = 0; l < 16; ++l)
                     if (active[l])
                         tile.segment_end[std::size_t(by + (l >> 2) - y0) * tw + (bx + (l & 3) - x0)] = segs[l].end;

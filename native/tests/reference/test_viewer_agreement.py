@@ -66,6 +66,21 @@ order 33.9 / 29.5, front / side). Both parts are what ray tracing 3D Gaussians i
   reference) give the same values (rotations to float rounding), and the test hands the reference's to both.
 The views are the scenes' fixed two (front, side), not chosen to pass; the thresholds of small.splat and guitar are
 set below their figures with this explanation.
+
+Camera-ray splatting (RenderSettings::camera_ray_splatting, off by default) is the answer to both parts: camera rays
+draw the Gaussians with the rasterizer's model (EWA footprint with the dilation, one sort by centre depth), so what is
+left is float rounding and the stop rules (the engine composites the Gaussian that takes T below 1e-4, the rasterizer
+stops before it). --table, 640 x 480, DISPLAY, dB against the EWA rasterizer, traced (today's default) / splatted:
+
+    scene                             front (traced / splatted)   side (traced / splatted)
+    small_sh3_inria.ply               30.9 / 76.3                 32.6 / 80.0
+    donut_sh0.ply                     36.4 / 70.5                 32.6 / 65.9
+    unicorn_sh3_reordered.ply         33.1 / 72.1                 33.6 / 71.6
+    small.splat                       26.1 / 67.7                 26.5 / 61.8
+    guitar_supersplat.compressed.ply  35.9 / 75.4                 26.3 / 70.9
+
+(volumetric; in flat mode the splatted figures are the same, as the footprint is the whole 3D Gaussian's in both modes,
+while flat mode traced is 24.5-35.6 dB.)
 """
 import math
 import os
@@ -101,6 +116,10 @@ MIN_PSNR = {"small_sh3_inria.ply": 30.0, "donut_sh0.ply": 30.0, "unicorn_sh3_reo
             "guitar_supersplat.compressed.ply": 25.0}
 # Azimuth and elevation (degrees) of the two views around each scene's median, at DISTANCE x its 10-90 % extent.
 VIEWS = {"front": (0.0, 15.0), "side": (120.0, 35.0)}
+# Camera-ray splatting (RenderSettings::camera_ray_splatting) draws camera rays' Gaussians with the rasterizer's model:
+# the issue asks 30 dB on every view; what is left is float rounding and the two stop rules (62-80 dB, docstring), so
+# 50 dB holds it to being the same model.
+MIN_PSNR_SPLATTING = 50.0
 DISTANCE = 1.3
 
 
@@ -130,7 +149,8 @@ def view_camera(splats, view):
     return camera_to_world, world_to_view, 0.01 * DISTANCE * extent
 
 
-def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend_space, width=WIDTH, height=HEIGHT):
+def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend_space, width=WIDTH, height=HEIGHT,
+                     splatting=False, film=None):
     scene = native.RenderScene()
     scene.add_material()
     scene.add_gaussians(splats.positions, splats.rotations, splats.scales, splats.opacities, splats.sh)
@@ -139,16 +159,20 @@ def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend
     camera = {"type": "PERSP", "matrix": camera_to_world.astype(np.float32), "lens": LENS, "sensor_width": SENSOR,
               "sensor_fit": "HORIZONTAL", "clip_start": near, "clip_end": 1e6}
     settings = {"width": width, "height": height, "samples": 1, "jitter": False, "max_bounces": 0,
-                "gaussian_mode": gaussian_mode, "blend_space": blend_space, "transmittance_threshold": 1e-4}
+                "gaussian_mode": gaussian_mode, "blend_space": blend_space, "transmittance_threshold": 1e-4,
+                "camera_ray_splatting": splatting}
     job = native.RenderJob(scene, camera, settings)
     while not job.wait(1.0):
         pass
-    rgba = np.asarray(job.result()["rgba"], np.float64).reshape(height, width, 4)
+    result = job.result()
+    if film is not None:
+        film.update(result)
+    rgba = np.asarray(result["rgba"], np.float64).reshape(height, width, 4)
     return ewa.linear_to_srgb(rgba[..., :3])  # as Blender's Standard view transform shows the linear film
 
 
-def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR")):
-    """{(scene, view, mode, space): PSNR}."""
+def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR"), splattings=(False,)):
+    """{(scene, view, mode, space, camera_ray_splatting): PSNR}."""
     results = {}
     fx = WIDTH * LENS / SENSOR
     for name in SCENES:
@@ -158,8 +182,10 @@ def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR"
             reference = ewa.rasterize(splats, world_to_view, fx, fx, WIDTH, HEIGHT, near=near)
             for mode in modes:
                 for space in spaces:
-                    image = render_raysplats(native, splats, camera_to_world, near, mode, space)
-                    results[(name, view, mode, space)] = ewa.psnr(reference, image)
+                    for splatting in splattings:
+                        image = render_raysplats(native, splats, camera_to_world, near, mode, space,
+                                                 splatting=splatting)
+                        results[(name, view, mode, space, splatting)] = ewa.psnr(reference, image)
     return results
 
 
@@ -227,14 +253,32 @@ class ViewerAgreement(unittest.TestCase):
     def test_display_blend_space_matches_the_viewer(self):
         import _native
         results = measure(_native, DATA_DIR)
-        for (name, view, mode, space), value in results.items():
+        for (name, view, mode, space, _), value in results.items():
             if space == "DISPLAY":
                 self.assertGreaterEqual(value, MIN_PSNR[name], f"{name} {view} {mode}: {value:.2f} dB")
         # Linear compositing is the grey halo the issue reported: the hazy unicorn falls short by several dB.
         for view in VIEWS:
-            linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR")]
-            display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY")]
+            linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR", False)]
+            display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY", False)]
             self.assertLess(linear, display - 3.0, f"unicorn {view}: linear {linear:.2f} dB, display {display:.2f} dB")
+
+    def test_camera_ray_splatting_matches_the_viewer(self):
+        # With camera-ray splatting every camera ray draws the Gaussians as the rasterizer does: every view of every
+        # scene, the two that tracing leaves at 26 dB included, agrees to MIN_PSNR_SPLATTING (the issue asks 30 dB; the
+        # figures are 62-80 dB, the docstring's table). Flat mode too (the add-on's default): the footprint is the
+        # whole 3D Gaussian's in both modes.
+        import _native
+        results = measure(_native, DATA_DIR, modes=("VOLUMETRIC", "FLAT"), spaces=("DISPLAY",), splattings=(True,))
+        for (name, view, mode, space, _), value in results.items():
+            self.assertGreaterEqual(value, MIN_PSNR_SPLATTING, f"{name} {view} {mode} splatted: {value:.2f} dB")
+        # It is the setting that does it: the render says it splatted, and without it small.splat is still traced.
+        splats = ewa.read_splats(os.path.join(DATA_DIR, "small.splat"))
+        camera_to_world, _, near = view_camera(splats, "front")
+        for splatting in (False, True):
+            film = {}
+            render_raysplats(_native, splats, camera_to_world, near, "VOLUMETRIC", "DISPLAY", WIDTH // 4, HEIGHT // 4,
+                             splatting=splatting, film=film)
+            self.assertEqual(film["camera_ray_splatting"], splatting)
 
     def test_engine_is_the_exact_ray_model(self):
         # What the figures above measure is the difference between two models, not a defect of either: the engine
@@ -254,13 +298,15 @@ class ViewerAgreement(unittest.TestCase):
 def print_table(module_dir, data_dir):
     sys.path.insert(0, module_dir)
     import _native
-    results = measure(_native, data_dir, modes=("VOLUMETRIC", "FLAT"))
-    print(f"{'scene':<28} {'view':<6} {'mode':<11} {'LINEAR (before)':>16} {'DISPLAY (now)':>14}")
+    results = measure(_native, data_dir, modes=("VOLUMETRIC", "FLAT"), splattings=(False, True))
+    print(f"{'scene':<34} {'view':<6} {'mode':<11} {'LINEAR traced':>14} {'DISPLAY traced':>15} "
+          f"{'DISPLAY splatted':>17}")
     for name in SCENES:
         for view in VIEWS:
             for mode in ("VOLUMETRIC", "FLAT"):
-                print(f"{name:<28} {view:<6} {mode:<11} {results[(name, view, mode, 'LINEAR')]:>16.2f} "
-                      f"{results[(name, view, mode, 'DISPLAY')]:>14.2f}")
+                print(f"{name:<34} {view:<6} {mode:<11} {results[(name, view, mode, 'LINEAR', False)]:>14.2f} "
+                      f"{results[(name, view, mode, 'DISPLAY', False)]:>15.2f} "
+                      f"{results[(name, view, mode, 'DISPLAY', True)]:>17.2f}")
 
 
 def print_attribution(module_dir, data_dir, names):

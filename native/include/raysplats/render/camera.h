@@ -66,6 +66,15 @@ public:
     CameraRayGenerator(const Camera& camera, int width, int height);
     CameraRay operator()(float x, float y) const;
 
+    // Perspective: the pinhole projection these rays invert. A camera-space point (X, Y, Z) (looking down -Z) at
+    // depth z = -Z lies at image position x = cx + fx X / z, y = cy - fy Y / z, in the pixel units above.
+    struct PinholeProjection {
+        float fx, fy, cx, cy;
+        float half_width_tan, half_height_tan;  // the frustum's half extents, in X / z and Y / z
+        float center_x_tan, center_y_tan;       // its centre (the lens shift), the same units
+    };
+    PinholeProjection pinhole_projection() const;
+
 private:
     Camera camera_;
     float width_, height_;

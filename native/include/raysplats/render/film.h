@@ -86,6 +86,14 @@ struct RenderStats {
     // With adaptive sampling, the most any pixel holds (the sample_count channel has each pixel's).
     int samples = 0;
     bool cancelled = false;
+    // RenderSettings::camera_ray_splatting: whether it drew this render's camera rays (not for a camera or scene it
+    // does not apply to), the time of its pre-pass, and what the pre-pass holds: splats (Gaussians in view), tile list
+    // entries, and the bytes of both.
+    bool camera_ray_splatting = false;
+    double splat_prepass_seconds = 0.0;
+    std::uint64_t splats = 0;
+    std::uint64_t splat_tile_entries = 0;
+    std::uint64_t splat_bytes = 0;
 };
 
 // Rows are stored top to bottom (row 0 is the top of the image), pixels left to right; a channel with C components

@@ -76,6 +76,12 @@ struct RenderSettings {
     // early: the traversal then skips what lies behind the first opaque layer. The image is the same either way (the
     // same Gaussians composited in the same order); off is for tests and measurements.
     bool speculative_ends = true;
+    // Camera-ray splatting (src/render/camera_splatting.h): a perspective camera's rays draw the Gaussians in front of
+    // their first mesh hit as splat viewers do (each Gaussian's EWA footprint, composited in the order of centre
+    // depth, one sort per frame) instead of tracing them, so an unedited scene matches its viewer where large or thin
+    // Gaussians make the two models differ; then they go on to that mesh or the world as traced rays do. Every other
+    // ray is traced. Needs every Gaussian cloud BAKED: with LIT or BAKED_SHADOWED ones, camera rays stay traced.
+    bool camera_ray_splatting = false;
 
     // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
     // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The

@@ -1,0 +1,80 @@
+# Render Properties > Gaussians > Camera Rays as Splats (scene.raysplats.camera_ray_splatting) reaches the core
+# through F12 (engine/final.py, engine/sync.py): with it on, the render's camera rays are splatted (the core says
+# so) and the image is the native render with the setting, not the traced one; off (the default), it is the traced
+# render. A relit object keeps camera rays traced, with a warning.
+import unittest
+
+import bpy
+import numpy as np
+
+import splat_testing as st
+from raysplats.engine import final, sync, ui
+
+DONUT = "donut_sh0.ply"
+WIDTH, HEIGHT = 96, 72
+
+
+def donut_scene():
+    scene = st.reset_render_scene(WIDTH, HEIGHT, 2)
+    st.import_file(DONUT)
+    data = bpy.data.cameras.new("Camera")
+    camera = bpy.data.objects.new("Camera", data)
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, -0.6, 0.0)
+    camera.rotation_euler = (1.5708, 0.0, 0.0)  # looking along +Y (as test_render_region.py)
+    scene.camera = camera
+    scene.raysplats.gaussian_mode = "VOLUMETRIC"
+    return scene
+
+
+class _RecordingLayout:
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
+        self.use_property_split = self.use_property_decorate = False
+        self.active = True
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append(name)
+
+    def column(self, **kwargs):
+        return _RecordingLayout(self.log)
+
+    row = box = column
+
+
+class CameraRaySplatting(unittest.TestCase):
+    def setUp(self):
+        self.scene = donut_scene()
+
+    def test_off_by_default_and_in_the_gaussians_panel(self):
+        self.assertFalse(self.scene.raysplats.camera_ray_splatting)
+        self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.scene.raysplats.camera_ray_splatting = True
+        self.assertTrue(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
+        panel = type("Panel", (), {"layout": _RecordingLayout()})()
+        ui.RAYSPLATS_RENDER_PT_gaussians.draw(panel, bpy.context)
+        self.assertIn("camera_ray_splatting", panel.layout.log)
+
+    def test_f12_splats_camera_rays_when_on(self):
+        traced = st.render_to_array("splatting_off")
+        self.assertFalse(final.last_render["camera_ray_splatting"])
+        self.scene.raysplats.camera_ray_splatting = True
+        splatted = st.render_to_array("splatting_on")
+        self.assertTrue(final.last_render["camera_ray_splatting"])
+        self.assertGreater(final.last_render["splat_prepass_seconds"], 0.0)
+        self.assertGreater(np.sum(splatted[..., 3] > 0.5), 200)  # the donut is in the frame
+        # The two models differ on the donut's soft edges, by a little: not the same image, nor another scene.
+        difference = np.abs(splatted[..., :3] - traced[..., :3])
+        self.assertGreater(difference.max(), 1e-3)
+        self.assertLess(difference.mean(), 0.02)
+
+    def test_a_relit_object_keeps_camera_rays_traced(self):
+        self.scene.raysplats.camera_ray_splatting = True
+        self.scene.raysplats.gaussian_shading = "LIT"
+        st.render_to_array("splatting_lit")
+        self.assertFalse(final.last_render["camera_ray_splatting"])
+
+
+if __name__ == "__main__":
+    unittest.main()
