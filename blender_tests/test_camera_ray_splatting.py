@@ -3,12 +3,14 @@
 # so) and the image is the native render with the setting, not the traced one; off (the default), it is the traced
 # render. A relit object keeps camera rays traced, with a warning.
 import unittest
+from unittest import mock
 
 import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.engine import final, sync, ui
+from raysplats import native
+from raysplats.engine import final, sync, ui, viewport
 
 DONUT = "donut_sh0.ply"
 WIDTH, HEIGHT = 96, 72
@@ -46,17 +48,20 @@ class CameraRaySplatting(unittest.TestCase):
     def setUp(self):
         self.scene = donut_scene()
 
-    def test_off_by_default_and_in_the_gaussians_panel(self):
-        self.assertFalse(self.scene.raysplats.camera_ray_splatting)
-        self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
-        self.scene.raysplats.camera_ray_splatting = True
+    def test_on_by_default_and_in_the_gaussians_panel(self):
+        # On in the add-on (an unedited scene looks as in its viewer), off in the core (its golden images are traced).
+        self.assertTrue(self.scene.raysplats.camera_ray_splatting)
         self.assertTrue(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.scene.raysplats.camera_ray_splatting = False
+        self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         panel = type("Panel", (), {"layout": _RecordingLayout()})()
         ui.RAYSPLATS_RENDER_PT_gaussians.draw(panel, bpy.context)
         self.assertIn("camera_ray_splatting", panel.layout.log)
 
     def test_f12_splats_camera_rays_when_on(self):
+        self.scene.raysplats.camera_ray_splatting = False
         traced = st.render_to_array("splatting_off")
         self.assertFalse(final.last_render["camera_ray_splatting"])
         self.scene.raysplats.camera_ray_splatting = True
@@ -68,6 +73,29 @@ class CameraRaySplatting(unittest.TestCase):
         difference = np.abs(splatted[..., :3] - traced[..., :3])
         self.assertGreater(difference.max(), 1e-3)
         self.assertLess(difference.mean(), 0.02)
+
+    def test_the_viewport_preview_is_traced_and_its_passes_splatted(self):
+        # The quarter-resolution first image of a view or an edit comes quickly (no pre-pass over every Gaussian);
+        # the passes that replace it follow the setting.
+        started = []
+        real_job = st.native().RenderJob
+
+        def recording_job(render_scene, camera, settings, **options):
+            started.append(settings["camera_ray_splatting"])
+            return real_job(render_scene, camera, settings, **options)
+
+        state = viewport.ViewportState()
+        state.sync = sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
+        camera = {"matrix": np.array(self.scene.camera.matrix_world, dtype=np.float32), "type": "PERSP",
+                  "lens": 50.0, "sensor_width": 36.0}
+        engine = type("Engine", (), {})()
+        with mock.patch.object(native.core(), "RenderJob", recording_job), \
+                mock.patch.object(viewport, "_start_polling", lambda engine, state: None):
+            viewport._start_preview(engine, state, self.scene, "key", camera, 16, 12)
+            state.job.wait(60.0)
+            viewport._start_job(engine, state, self.scene, camera, 64, 48, 1, seed_offset=1)
+            state.job.wait(60.0)
+        self.assertEqual(started, [False, True])
 
     def test_a_relit_object_keeps_camera_rays_traced(self):
         self.scene.raysplats.camera_ray_splatting = True

@@ -24,6 +24,9 @@ def new_scene():
     scene.raysplats.max_bounces = 0
     # Baked references composited linearly, as lit and shadowed splats are (the display blend is tested elsewhere).
     scene.raysplats.blend_space = "LINEAR"
+    # Traced camera rays in every mode: a scene with relit objects is traced whole, and the baked references are
+    # compared with relit images pixel by pixel (camera-ray splatting is tested in test_camera_ray_splatting.py).
+    scene.raysplats.camera_ray_splatting = False
     scene.view_settings.view_transform = "Standard"
     scene.render.film_transparent = True  # alpha = coverage: the donut's pixels
     world = bpy.data.worlds.new("World")

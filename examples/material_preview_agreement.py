@@ -112,6 +112,8 @@ def render_rgba(scene, engine, path, samples):
         # EEVEE composites its hashed transparency in linear light: the reference is the linear blend, not the
         # splat viewers' display blend (the default since issue 15).
         scene.raysplats.blend_space = "LINEAR"
+        # EEVEE draws the flat polygons, not the viewers' projected footprints: the reference is the traced image.
+        scene.raysplats.camera_ray_splatting = False
     else:
         scene.eevee.taa_render_samples = samples
     scene.render.image_settings.file_format = "OPEN_EXR"

@@ -63,9 +63,11 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                ("BAKED_SHADOWED", "Baked + Shadows", "The captured light, darkened where meshes and splats hide the "
                                                      "scene's lights")),
         description="How splats' colours are produced (objects can override it in their Gaussian Splats panel)")
-    # Off by default: the traced image (the exact 3D response of each Gaussian along each ray) stays the default.
+    # On by default (issue 15: an unedited scene shows what its viewer shows; 62-80 dB against the EWA rasterizer,
+    # traced 26-36 dB): only Baked splats seen by perspective camera rays are splatted, so relit scenes, other cameras
+    # and every secondary ray are traced as before. The core's own default stays off (its golden images are traced).
     camera_ray_splatting: BoolProperty(
-        name="Camera Rays as Splats", default=False,
+        name="Camera Rays as Splats", default=True,
         description="Draw the splats that camera rays see as splat viewers draw them (each Gaussian's projected "
                     "footprint, in the order of centre depth), so an unedited scene looks exactly as in its viewer; "
                     "meshes, reflections, refraction and shadows are ray traced as before. Perspective cameras and "
