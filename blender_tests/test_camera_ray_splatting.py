@@ -48,12 +48,11 @@ class CameraRaySplatting(unittest.TestCase):
     def setUp(self):
         self.scene = donut_scene()
 
-    def test_on_by_default_and_in_the_gaussians_panel(self):
-        # On in the add-on (an unedited scene looks as in its viewer), off in the core (its golden images are traced).
-        self.assertTrue(self.scene.raysplats.camera_ray_splatting)
-        self.assertTrue(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
-        self.scene.raysplats.camera_ray_splatting = False
+    def test_off_by_default_and_in_the_gaussians_panel(self):
+        self.assertFalse(self.scene.raysplats.camera_ray_splatting)
         self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.scene.raysplats.camera_ray_splatting = True
+        self.assertTrue(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
         self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         panel = type("Panel", (), {"layout": _RecordingLayout()})()
@@ -61,7 +60,6 @@ class CameraRaySplatting(unittest.TestCase):
         self.assertIn("camera_ray_splatting", panel.layout.log)
 
     def test_f12_splats_camera_rays_when_on(self):
-        self.scene.raysplats.camera_ray_splatting = False
         traced = st.render_to_array("splatting_off")
         self.assertFalse(final.last_render["camera_ray_splatting"])
         self.scene.raysplats.camera_ray_splatting = True
@@ -93,6 +91,7 @@ class CameraRaySplatting(unittest.TestCase):
                 mock.patch.object(viewport, "_start_polling", lambda engine, state: None):
             viewport._start_preview(engine, state, self.scene, "key", camera, 16, 12)
             state.job.wait(60.0)
+            self.scene.raysplats.camera_ray_splatting = True
             viewport._start_job(engine, state, self.scene, camera, 64, 48, 1, seed_offset=1)
             state.job.wait(60.0)
         self.assertEqual(started, [False, True])

@@ -93,10 +93,8 @@ def render_final(engine, depsgraph):
               f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
               f"{stats.triangles:,} triangles")
         if settings.camera_ray_splatting and not film["camera_ray_splatting"]:
-            # (Information, not a warning: the setting is on by default, and relit scenes and panoramic cameras are
-            # meant to be traced.)
-            engine.report({"INFO"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
-                                    "this render's camera rays were ray traced")
+            engine.report({"WARNING"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
+                                       "this render's camera rays were ray traced")
         passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
         # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now

@@ -263,9 +263,24 @@ inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, co
                                        const float* ys, const float* mesh_depth, Sampler* rngs, Segment* segs,
                                        Counters& c) const {
     const bool display = st_.blend_space == BlendSpace::Display;
+    // The box of the packet's sample positions: a splat whose square misses it is skipped with four comparisons
+    // instead of one per lane. A 4 x 4 packet covers a sixteenth of a 16 px tile, and a zoomed-out view of a big scene
+    // has thousands of small splats per tile list (showroom_1.5M whole at 640 x 360, 128 samples: the F12 took 7.5x
+    // the traced render's time before this test).
+    float x0 = std::numeric_limits<float>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    for (std::uint32_t live = lanes; live; live &= live - 1) {
+        const int l = __builtin_ctz(live);
+        x0 = std::min(x0, xs[l]);
+        x1 = std::max(x1, xs[l]);
+        y0 = std::min(y0, ys[l]);
+        y1 = std::max(y1, ys[l]);
+    }
     for (std::uint64_t e = offsets_[tile]; e < offsets_[tile + 1] && lanes; ++e) {
         const std::uint32_t index = entries_[e];
         const ProjectedSplat& ps = splats_[index];
+        if (ps.u + ps.half_extent < x0 || ps.u - ps.half_extent > x1 || ps.v + ps.half_extent < y0 ||
+            ps.v - ps.half_extent > y1)
+            continue;
         for (std::uint32_t live = lanes; live; live &= live - 1) {
             const int l = __builtin_ctz(live);
             if (!(ps.depth < mesh_depth[l])) {  // the list is front to back: this lane is done
