@@ -342,20 +342,7 @@ void CameraSplatting::trace_packet(const Ray* rays, const bool* active, const fl
     for (int l = 0; l < 16 && any_mesh; ++l) {
         const Ray& r = rays[l];
         valid[l] = active[l] ? -1 : 0;
-        rh.ray.org_x[l] = r.o.x;
-        rh.ray.org_y[l] = r.o.y;
-        rh.ray.org_z[l] = r.o.z;
-        rh.ray.dir_x[l] = r.d.x;
-        rh.ray.dir_y[l] = r.d.y;
-        rh.ray.dir_z[l] = r.d.z;
-        rh.ray.tnear[l] = r.tmin;
-        rh.ray.tfar[l] = r.tmax;
-        rh.ray.time[l] = 0.0f;
-        rh.ray.mask[l] = 0xffffffffu;
-        rh.ray.id[l] = unsigned(l);
-        rh.ray.flags[l] = 0;
-        rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+        set_packet_lane(rh, l, r, r.tmax);
     }
     if (any_mesh) {
         TraceContext ctx(lanes, TraceMode::MeshesOnly);

@@ -8,6 +8,7 @@
 
 #include "gather_buffer.h"
 #include "gaussian_primitives.h"
+#include "ray.h"
 
 namespace raysplats {
 
@@ -41,6 +42,25 @@ struct TraceContext : RTCIntersectContext {
     LaneState* lanes;
     TraceContext(LaneState* lane_array, TraceMode m) : mode(m), lanes(lane_array) { rtcInitIntersectContext(this); }
 };
+
+// Lane l of a 16-ray packet set to the segment [ray.tmin, tfar] of `ray`, with no hit yet (the packet's other
+// fields as rtcIntersect16 wants them: every ray's mask, no motion time, its own id).
+inline void set_packet_lane(RTCRayHit16& rh, int l, const Ray& ray, float tfar) {
+    rh.ray.org_x[l] = ray.o.x;
+    rh.ray.org_y[l] = ray.o.y;
+    rh.ray.org_z[l] = ray.o.z;
+    rh.ray.dir_x[l] = ray.d.x;
+    rh.ray.dir_y[l] = ray.d.y;
+    rh.ray.dir_z[l] = ray.d.z;
+    rh.ray.tnear[l] = ray.tmin;
+    rh.ray.tfar[l] = tfar;
+    rh.ray.time[l] = 0.0f;
+    rh.ray.mask[l] = 0xffffffffu;
+    rh.ray.id[l] = unsigned(l);
+    rh.ray.flags[l] = 0;
+    rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+}
 
 // Creates the Embree user geometry of a chunk of `chunk.set` (bounds + intersect + occluded callbacks for the set's
 // flat or volumetric Gaussians), groups its primitives and commits it.

@@ -233,21 +233,8 @@ void GaussianSegmentTracer::trace_packet(const Ray* rays, const bool* active, co
         const Ray& r = rays[l];
         init_lane(lanes[l]);
         if (active[l] && !sorted) lanes[l].seed = rngs[l].next_u32();
-        rh.ray.org_x[l] = r.o.x;
-        rh.ray.org_y[l] = r.o.y;
-        rh.ray.org_z[l] = r.o.z;
-        rh.ray.dir_x[l] = r.d.x;
-        rh.ray.dir_y[l] = r.d.y;
-        rh.ray.dir_z[l] = r.d.z;
-        rh.ray.tnear[l] = r.tmin;
         end[l] = std::min(r.tmax, ends[l]);
-        rh.ray.tfar[l] = end[l];
-        rh.ray.time[l] = 0.0f;
-        rh.ray.mask[l] = 0xffffffffu;
-        rh.ray.id[l] = unsigned(l);
-        rh.ray.flags[l] = 0;
-        rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+        set_packet_lane(rh, l, r, end[l]);
     }
     TraceContext ctx(lanes, sorted ? TraceMode::Gather : TraceMode::Stochastic);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
