@@ -272,8 +272,8 @@ def add_gaussian_object(context, name, cloud, vertices_per_polygon, radius, up_a
     sh_degree = cloud["sh_degree"]
     del cloud
     stage("fill Blender mesh")
-    obj = _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file,
-                               lambda: stage("object and material"))
+    obj = _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file)
+    stage("object and material")
     try:
         link_as_only_selected(context, obj)
     except BaseException:
@@ -344,8 +344,7 @@ def _invisible_warnings(invisible_skipped):
             if invisible_skipped else [])
 
 
-def _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file,
-                         before_object=None):
+def _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree, up_axis, source_file):
     """A Gaussian object of its own new mesh filled from `polygons` (the core's gaussians_to_polygons dict, emptied
     on the way), not linked to any collection. On failure nothing stays."""
     mesh = bpy.data.meshes.new(name)
@@ -353,8 +352,6 @@ def _new_gaussian_object(name, polygons, vertices_per_polygon, radius, sh_degree
     try:
         gaussian_mesh.fill_mesh(mesh, polygons)  # (takes the arrays out of `polygons`, freeing each once copied)
         del polygons
-        if before_object is not None:
-            before_object()
         mesh.materials.append(material.gaussian_material())
         obj = bpy.data.objects.new(name, mesh)
         settings = obj.raysplats

@@ -53,7 +53,8 @@ def _draw_settings(layout, obj):
     pieces = gaussian_mesh.scene_pieces(obj.parent)
     if obj in pieces:  # a piece of a split import (io_import.add_gaussian_pieces)
         total = sum(len(piece.data.polygons) for piece in pieces)
-        column.label(text=f"Piece {pieces.index(obj) + 1} of {len(pieces)} of '{obj.parent.name}' ({total:,})")
+        # (Short: the sidebar and the properties editor are narrow; the scene's empty is the parent in the outliner.)
+        column.label(text=f"Piece {pieces.index(obj) + 1} of {len(pieces)}, {total:,} in all")
     # K and rho are what the polygons were built with: changing them would re-read every polygon wrongly, so they
     # are shown, not edited.
     column = layout.column()
