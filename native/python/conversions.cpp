@@ -159,6 +159,8 @@ py::dict film_to_dict(Film&& film) {
     d["render_seconds"] = film.stats.render_seconds;
     d["camera_rays"] = film.stats.camera_rays;
     d["gaussian_hits"] = film.stats.gaussian_hits;
+    d["gaussian_candidates"] = film.stats.gaussian_candidates;
+    d["gaussian_group_candidates"] = film.stats.gaussian_group_candidates;
     d["camera_ray_splatting"] = film.stats.camera_ray_splatting;
     d["splat_prepass_seconds"] = film.stats.splat_prepass_seconds;
     d["splats"] = film.stats.splats;

@@ -195,6 +195,31 @@ TEST(CameraSplatting, CompositesInCentreDepthOrder) {
     }
 }
 
+// The same across the two levels of tile lists: a small Gaussian (a footprint of about 2 px: the 4 px lists) and a
+// big one (about 10 px: the 16 px lists) on the optical axis, either in front: a packet merges the lists in depth order.
+TEST(CameraSplatting, SmallAndBigSplatsCompositeInDepthOrder) {
+    const float q[4] = {1, 0, 0, 0}, small_scale[3] = {0.02f, 0.02f, 0.02f}, big_scale[3] = {0.3f, 0.3f, 0.3f};
+    const float blue[3] = {0, 0, 1}, red[3] = {1, 0, 0};
+    for (bool small_in_front : {true, false}) {
+        const float near_pos[3] = {0, 0, -3}, far_pos[3] = {0, 0, -4};
+        GaussianCloud small, big;
+        add_gaussian(small, small_in_front ? near_pos : far_pos, q, small_scale, 0.6f, blue);
+        add_gaussian(big, small_in_front ? far_pos : near_pos, q, big_scale, 0.7f, red);
+        Scene scene;
+        scene.add_gaussians(big);
+        scene.add_gaussians(small);
+        scene.set_world(black_world());
+        const Film film = render(scene, pinhole(), splat_settings(true));
+        const std::size_t p = std::size_t(kSize / 2) * kSize + kSize / 2;
+        const double a_near = small_in_front ? 0.6 : 0.7, a_far = small_in_front ? 0.7 : 0.6;
+        const double blue_part = small_in_front ? a_near : (1.0 - a_near) * a_far;
+        const double red_part = small_in_front ? (1.0 - a_near) * a_far : a_near;
+        EXPECT_NEAR(film.alpha()[p], 1.0 - (1.0 - a_near) * (1.0 - a_far), 1e-6) << small_in_front;
+        EXPECT_NEAR(film.rgba()[4 * p + 0], srgb_to_linear_ref(red_part), 1e-4) << small_in_front;
+        EXPECT_NEAR(film.rgba()[4 * p + 2], srgb_to_linear_ref(blue_part), 1e-4) << small_in_front;
+    }
+}
+
 // A mesh (an emissive quad, radiance e) across the optical axis: in front of the Gaussian it hides it; behind it,
 // it shows through with the transmittance left, combined in display space: linear(a c + (1 - a) srgb(e)).
 TEST(CameraSplatting, MeshesInFrontHideAndBehindShowThrough) {

@@ -12,6 +12,8 @@
 
 #include "gaussian_callbacks.h"
 #include "gaussian_primitives.h"
+#include "pixel_filter.h"
+#include "simd.h"
 #include "raysplats/errors.h"
 
 namespace raysplats {
@@ -69,9 +71,19 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
     const int margin = filter_margin(settings);
     grid_x0_ = region.x0 - margin;
     grid_y0_ = region.y0 - margin;
-    tiles_x_ = (region.width() + 2 * margin + kTileSize - 1) / kTileSize;
-    tiles_y_ = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
-    const float grid_x1 = float(grid_x0_ + tiles_x_ * kTileSize), grid_y1 = float(grid_y0_ + tiles_y_ * kTileSize);
+    coarse_.size = kTileSize;
+    coarse_.nx = (region.width() + 2 * margin + kTileSize - 1) / kTileSize;
+    coarse_.ny = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
+    // The fine grid subdivides the coarse one exactly, so that a fine tile lies in one coarse tile.
+    static_assert(kTileSize % kFineTileSize == 0, "fine tiles subdivide coarse tiles");
+    fine_.size = kFineTileSize;
+    fine_.nx = coarse_.nx * (kTileSize / kFineTileSize);
+    fine_.ny = coarse_.ny * (kTileSize / kFineTileSize);
+    const float grid_x1 = float(grid_x0_ + coarse_.nx * kTileSize), grid_y1 = float(grid_y0_ + coarse_.ny * kTileSize);
+    // A packet's samples lie within this of its pixels' squares (jitter: the pixel filter's reach from the centre).
+    sample_pad_ = settings.jitter
+                      ? std::max(0.0f, PixelFilterSampler::reach(settings.pixel_filter, settings.filter_width) - 0.5f)
+                      : 0.0f;
 
     // The camera ray's SH direction is camera -> centre (GaussianSet::display_color with the camera's origin).
     const bool display = settings.blend_space == BlendSpace::Display;
@@ -130,6 +142,7 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         out.opacity = g.opacity;
         out.depth = z;
         out.half_extent = half;
+        out.least_power = std::log(kMinAlpha / g.opacity) - 1e-3f;
         return true;
     };
 
@@ -169,7 +182,7 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
         for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
     });
     splats_.resize(keys.size());
-    shades_.resize(keys.size());
+    sources_.resize(keys.size());
     keys.clear();
     keys.shrink_to_fit();
     const glm::vec3 origin = camera_origin_;
@@ -182,35 +195,52 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
                                   const std::uint32_t rank = rank_of[set_base[k] + j];
                                   if (rank == kNotVisible) continue;
                                   const auto prim = std::uint32_t(j);
-                                  project(set, prim, splats_[rank]);
-                                  SplatShade& shade = shades_[rank];
-                                  shade.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
-                                  shade.set = set.index;
-                                  shade.prim = prim;
+                                  ProjectedSplat& splat = splats_[rank];
+                                  project(set, prim, splat);
+                                  splat.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
+                                  sources_[rank] = SplatSource{set.index, prim};
                               }
                           });
     }
     if (cancelled()) return;
 
-    // 3. Tile lists: count, offsets, fill, and each list back in depth order.
-    const std::size_t tile_count = std::size_t(tiles_x_) * std::size_t(tiles_y_);
-    // The tiles a splat can draw in: those its square touches where alpha can reach 1/255, i.e. where
-    // q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile. Outside that ellipse every
-    // sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps thin and faint
-    // Gaussians out of most of their square's tiles.
+    // 3. Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
+    // view of a big scene that list holds thousands of splats of a pixel or two, of which the packet's sixteenth of the
+    // tile meets a few percent (showroom_1.5M whole at 640 x 360: 4.7x the traced render's time). Small splats therefore
+    // go into lists of the packets' own 4 px tiles; big ones stay in 16 px lists, where they cost 16x fewer entries
+    // (small.splat at 1080p in 4 px tiles only: 42 M entries and a 5.5 s pre-pass). A packet merges its two lists.
+    std::vector<std::uint8_t> level(splats_.size());
+    for (std::size_t i = 0; i < splats_.size(); ++i) level[i] = splats_[i].half_extent <= kFineSplatMaxHalfExtent;
+    bin(coarse_, level, 0, cancel);
+    if (cancelled()) return;
+    bin(fine_, level, 1, cancel);
+}
+
+void CameraSplatting::bin(TileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
+                          const std::atomic<bool>* cancel) {
+    auto cancelled = [cancel] { return cancel && cancel->load(std::memory_order_relaxed); };
+    const std::size_t tile_count = std::size_t(lists.nx) * std::size_t(lists.ny);
+    const int size = lists.size;
+    // The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
+    // q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile widened by the samples'
+    // pad. Outside that ellipse every sample skips the splat anyway, so leaving it out of those tiles changes no image;
+    // it keeps thin and faint Gaussians out of most of their square's tiles. The pad lets a packet read only the lists
+    // of its pixels' tile, wherever jitter put its samples (a list per tile a sample fell in cost a packet 2-4 reads).
+    const double pad = sample_pad_ + 1e-3;  // (and a margin for rounding)
     auto for_each_tile = [&](const ProjectedSplat& ps, auto&& visit) {
-        const int tx0 = std::max(0, int(std::floor((ps.u - ps.half_extent - float(grid_x0_)) / kTileSize)));
-        const int ty0 = std::max(0, int(std::floor((ps.v - ps.half_extent - float(grid_y0_)) / kTileSize)));
-        const int tx1 = std::min(tiles_x_ - 1, int(std::floor((ps.u + ps.half_extent - float(grid_x0_)) / kTileSize)));
-        const int ty1 = std::min(tiles_y_ - 1, int(std::floor((ps.v + ps.half_extent - float(grid_y0_)) / kTileSize)));
+        const float reach_x = ps.half_extent + float(pad);
+        const int tx0 = std::max(0, int(std::floor((ps.u - reach_x - float(grid_x0_)) / size)));
+        const int ty0 = std::max(0, int(std::floor((ps.v - reach_x - float(grid_y0_)) / size)));
+        const int tx1 = std::min(lists.nx - 1, int(std::floor((ps.u + reach_x - float(grid_x0_)) / size)));
+        const int ty1 = std::min(lists.ny - 1, int(std::floor((ps.v + reach_x - float(grid_y0_)) / size)));
         // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
         const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
         const double a = ps.conic[0], b = ps.conic[1], c = ps.conic[2];
         auto q = [&](double dx, double dy) { return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy; };
         for (int ty = ty0; ty <= ty1; ++ty) {
-            const double ly = double(grid_y0_ + ty * kTileSize) - ps.v, hy = ly + kTileSize;
+            const double ly = double(grid_y0_ + ty * size) - ps.v - pad, hy = ly + size + 2.0 * pad;
             for (int tx = tx0; tx <= tx1; ++tx) {
-                const double lx = double(grid_x0_ + tx * kTileSize) - ps.u, hx = lx + kTileSize;
+                const double lx = double(grid_x0_ + tx * size) - ps.u - pad, hx = lx + size + 2.0 * pad;
                 // The minimum of the convex q over the tile: 0 when the centre is inside, else on an edge, where q is
                 // a parabola in the free coordinate (minimised at -b x / c, or -b y / a, clamped to the edge).
                 double least = 0.0;
@@ -218,48 +248,59 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
                     least = std::min(std::min(q(lx, std::clamp(-b * lx / c, ly, hy)), q(hx, std::clamp(-b * hx / c, ly, hy))),
                                      std::min(q(std::clamp(-b * ly / a, lx, hx), ly), q(std::clamp(-b * hy / a, lx, hx), hy)));
                 }
-                if (least <= reach) visit(std::size_t(ty) * tiles_x_ + tx);
+                if (least <= reach) visit(std::size_t(ty) * lists.nx + tx);
             }
         }
     };
-    std::vector<std::atomic<std::uint32_t>> counts(tile_count);
-    for (auto& n : counts) n.store(0, std::memory_order_relaxed);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, splats_.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i)
-            for_each_tile(splats_[i], [&](std::size_t t) { counts[t].fetch_add(1, std::memory_order_relaxed); });
+    // A counting sort by tile that keeps the depth order: the splats in chunks of consecutive ranks, each chunk's
+    // count per tile, every chunk's start in every list (the lists' offsets plus the counts of the chunks before it),
+    // and each chunk fills its splats in rank order from its starts. No atomics, and no list needs sorting after (a
+    // zoomed-out view of showroom_1.5M puts 8 M entries in a few hundred tiles: atomic counters and a sort per list
+    // took 0.33 s, two thirds of the pre-pass).
+    const std::size_t chunks = std::clamp<std::size_t>(splats_.size() / 256, 1, 16);
+    const std::size_t chunk_size = (splats_.size() + chunks - 1) / chunks;
+    std::vector<std::uint32_t> starts(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+        std::uint32_t* count = starts.data() + k * tile_count;
+        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i)
+            if (level[i] == which) for_each_tile(splats_[i], [&](std::size_t t) { ++count[t]; });
     });
     if (cancelled()) return;
-    offsets_.assign(tile_count + 1, 0);
-    for (std::size_t t = 0; t < tile_count; ++t) offsets_[t + 1] = offsets_[t] + counts[t].load(std::memory_order_relaxed);
-    entries_.resize(offsets_[tile_count]);
-    for (std::size_t t = 0; t < tile_count; ++t) counts[t].store(0, std::memory_order_relaxed);  // the fill cursors
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, splats_.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i)
-            for_each_tile(splats_[i], [&](std::size_t t) {
-                entries_[offsets_[t] + counts[t].fetch_add(1, std::memory_order_relaxed)] = std::uint32_t(i);
-            });
-    });
-    if (cancelled()) return;
-    // Filled in any order by the threads: sorting each list's indices restores the depth order (deterministic).
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t t = r.begin(); t != r.end(); ++t)
-            std::sort(entries_.begin() + std::ptrdiff_t(offsets_[t]), entries_.begin() + std::ptrdiff_t(offsets_[t + 1]));
+    lists.offsets.assign(tile_count + 1, 0);
+    for (std::size_t t = 0; t < tile_count; ++t) {
+        std::uint64_t at = lists.offsets[t];
+        for (std::size_t k = 0; k < chunks; ++k) {
+            const std::uint32_t n = starts[k * tile_count + t];
+            starts[k * tile_count + t] = std::uint32_t(at - lists.offsets[t]);  // (within the list: fits 32 bits)
+            at += n;
+        }
+        lists.offsets[t + 1] = at;
+    }
+    lists.entries.resize(lists.offsets[tile_count]);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+        std::uint32_t* cursor = starts.data() + k * tile_count;
+        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i)
+            if (level[i] == which)
+                for_each_tile(splats_[i], [&](std::size_t t) {
+                    lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i);
+                });
     });
 }
 
 std::size_t CameraSplatting::memory_bytes() const {
-    return splats_.capacity() * sizeof(ProjectedSplat) + shades_.capacity() * sizeof(SplatShade) +
-           entries_.capacity() * sizeof(std::uint32_t) +
-           offsets_.capacity() * sizeof(std::uint64_t);
+    std::size_t bytes = splats_.capacity() * sizeof(ProjectedSplat) + sources_.capacity() * sizeof(SplatSource);
+    for (const TileLists* lists : {&coarse_, &fine_})
+        bytes += lists->entries.capacity() * sizeof(std::uint32_t) + lists->offsets.capacity() * sizeof(std::uint64_t);
+    return bytes;
 }
 
-std::size_t CameraSplatting::tile_of(float x, float y) const {
-    const int tx = std::clamp(int(std::floor((x - float(grid_x0_)) / kTileSize)), 0, tiles_x_ - 1);
-    const int ty = std::clamp(int(std::floor((y - float(grid_y0_)) / kTileSize)), 0, tiles_y_ - 1);
-    return std::size_t(ty) * tiles_x_ + tx;
+std::size_t CameraSplatting::TileLists::tile_of(float x, float y, int x0, int y0) const {
+    const int tx = std::clamp(int(std::floor((x - float(x0)) / size)), 0, nx - 1);
+    const int ty = std::clamp(int(std::floor((y - float(y0)) / size)), 0, ny - 1);
+    return std::size_t(ty) * nx + tx;
 }
 
-inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, const Ray* rays, const float* xs,
+inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs,
                                        const float* ys, const float* mesh_depth, Sampler* rngs, Segment* segs,
                                        Counters& c) const {
     const bool display = st_.blend_space == BlendSpace::Display;
@@ -275,31 +316,76 @@ inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, co
         y0 = std::min(y0, ys[l]);
         y1 = std::max(y1, ys[l]);
     }
-    for (std::uint64_t e = offsets_[tile]; e < offsets_[tile + 1] && lanes; ++e) {
-        const std::uint32_t index = entries_[e];
+    // The coarse tile holding the fine one, and the two lists' ranges; a splat is in one level, so merging them by
+    // rank (= depth order) visits each splat once, front to back.
+    constexpr int kPerCoarse = kTileSize / kFineTileSize;
+    const std::size_t fx = fine_tile % std::size_t(fine_.nx), fy = fine_tile / std::size_t(fine_.nx);
+    const std::size_t tile = fy / kPerCoarse * std::size_t(coarse_.nx) + fx / kPerCoarse;
+    const std::uint32_t* coarse = coarse_.entries.data() + coarse_.offsets[tile];
+    const std::uint32_t* const coarse_end = coarse_.entries.data() + coarse_.offsets[tile + 1];
+    const std::uint32_t* fine = fine_.entries.data() + fine_.offsets[fine_tile];
+    const std::uint32_t* const fine_end = fine_.entries.data() + fine_.offsets[fine_tile + 1];
+    // The splats are in depth order, so a tile's are scattered over the whole array: each read misses the cache. They
+    // are fetched kPrefetch entries ahead of their turn in either list.
+    constexpr std::ptrdiff_t kPrefetch = 8;
+    for (std::ptrdiff_t k = 0; k < kPrefetch; ++k) {
+        if (coarse + k < coarse_end) __builtin_prefetch(&splats_[coarse[k]]);
+        if (fine + k < fine_end) __builtin_prefetch(&splats_[fine[k]]);
+    }
+    // The lanes' samples and mesh depths, with lanes not in `lanes` far off the image and in front of everything.
+    alignas(16) float px[16], py[16], pz[16];
+    for (int l = 0; l < 16; ++l) {
+        px[l] = py[l] = -1e15f;
+        pz[l] = -kInf;
+    }
+    for (std::uint32_t live = lanes; live; live &= live - 1) {
+        const int l = __builtin_ctz(live);
+        px[l] = xs[l];
+        py[l] = ys[l];
+        pz[l] = mesh_depth[l];
+    }
+    while (lanes && (coarse != coarse_end || fine != fine_end)) {
+        const bool take_fine = coarse == coarse_end || (fine != fine_end && *fine < *coarse);
+        const std::uint32_t index = take_fine ? *fine++ : *coarse++;
+        if (take_fine ? fine + kPrefetch - 1 < fine_end : coarse + kPrefetch - 1 < coarse_end)
+            __builtin_prefetch(&splats_[take_fine ? fine[kPrefetch - 1] : coarse[kPrefetch - 1]]);
+        ++c.group_candidates;
         const ProjectedSplat& ps = splats_[index];
         if (ps.u + ps.half_extent < x0 || ps.u - ps.half_extent > x1 || ps.v + ps.half_extent < y0 ||
             ps.v - ps.half_extent > y1)
             continue;
-        for (std::uint32_t live = lanes; live; live &= live - 1) {
+        // Every lane at once, without branches (the tests' outcomes are as good as random, and lanes that are done
+        // fail them): the exponent, which lanes the splat covers, and which it is behind the mesh hit of.
+        using V = Sse::V;
+        const V u = Sse::set1(ps.u), v = Sse::set1(ps.v), half = Sse::set1(ps.half_extent), zero = Sse::set1(0.0f);
+        const V c0 = Sse::set1(ps.conic[0]), c1 = Sse::set1(ps.conic[1]), c2 = Sse::set1(ps.conic[2]);
+        const V least = Sse::set1(ps.least_power), depth = Sse::set1(ps.depth), minus_half = Sse::set1(-0.5f);
+        alignas(16) float power[16];
+        std::uint32_t covered = 0, behind = 0;
+        for (int k = 0; k < 16; k += Sse::W) {
+            const V dx = Sse::sub(Sse::load(px + k), u), dy = Sse::sub(Sse::load(py + k), v);
+            // -1/2 (c0 dx^2 + c2 dy^2) - c1 dx dy
+            const V p = Sse::sub(Sse::mul(minus_half, Sse::add(Sse::mul(Sse::mul(c0, dx), dx), Sse::mul(Sse::mul(c2, dy), dy))),
+                                 Sse::mul(Sse::mul(c1, dx), dy));
+            Sse::store(power + k, p);
+            const V covers = Sse::and_(Sse::and_(Sse::le(Sse::abs(dx), half), Sse::le(Sse::abs(dy), half)),
+                                       Sse::and_(Sse::le(p, zero), Sse::le(least, p)));
+            covered |= Sse::bits(covers) << k;
+            behind |= Sse::bits(Sse::le(Sse::load(pz + k), depth)) << k;  // !(depth < mesh depth)
+        }
+        c.candidates += std::uint64_t(__builtin_popcount(lanes));
+        lanes &= ~behind;  // the lists are front to back: these lanes are done
+        for (std::uint32_t live = covered & lanes; live; live &= live - 1) {
             const int l = __builtin_ctz(live);
-            if (!(ps.depth < mesh_depth[l])) {  // the list is front to back: this lane is done
-                lanes &= ~(1u << l);
-                continue;
-            }
-            const float dx = xs[l] - ps.u, dy = ys[l] - ps.v;
-            if (std::abs(dx) > ps.half_extent || std::abs(dy) > ps.half_extent) continue;
-            const float power = -0.5f * (ps.conic[0] * dx * dx + ps.conic[2] * dy * dy) - ps.conic[1] * dx * dy;
-            if (power > 0.0f) continue;
-            const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power));
+            const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power[l]));
             if (alpha < kMinAlpha) continue;
-            const SplatShade& shade = shades_[index];
-            const GaussianSet& set = *s_.gaussians[shade.set];
-            glm::vec3 color = shade.color;
+            glm::vec3 color = ps.color;
             if (st_.meshes_shadow_gaussians) {
                 // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear
                 // light.
-                const float vis = shadow_.gaussian_light_visibility(set.world_center(shade.prim), rngs[l], c);
+                const SplatSource& source = sources_[index];
+                const float vis = shadow_.gaussian_light_visibility(
+                    s_.gaussians[source.set]->world_center(source.prim), rngs[l], c);
                 if (!display) color *= vis;
                 else if (vis < 1.0f)
                     for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));
@@ -314,11 +400,13 @@ inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, co
             const bool stop = seg.transmittance < st_.transmittance_threshold;
             if (opaque_here || stop) {
                 // The point of the ray nearest the centre stands for the splat's place along the ray.
+                const SplatSource& source = sources_[index];
+                const GaussianSet& set = *s_.gaussians[source.set];
                 const Ray& ray = rays[l];
-                const float along = glm::dot(set.world_center(shade.prim) - ray.o, ray.d);
+                const float along = glm::dot(set.world_center(source.prim) - ray.o, ray.d);
                 if (opaque_here) {
                     seg.depth = along;
-                    const glm::vec3 n = set.flat ? set.world_normal(shade.prim) : -ray.d;
+                    const glm::vec3 n = set.flat ? set.world_normal(source.prim) : -ray.d;
                     seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
                 }
                 if (stop) {
@@ -331,8 +419,8 @@ inline void CameraSplatting::composite(std::size_t tile, std::uint32_t lanes, co
     }
 }
 
-void CameraSplatting::trace_packet(const Ray* rays, const bool* active, const float* xs, const float* ys,
-                                   Sampler* rngs, Segment* segs, Counters& c) const {
+void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, const bool* active, const float* xs,
+                                   const float* ys, Sampler* rngs, Segment* segs, Counters& c) const {
     for (int l = 0; l < 16; ++l) segs[l] = Segment{};
     // The first mesh hit of each ray (Gaussians ignored), as a packet.
     RTCRayHit16 rh;
@@ -357,11 +445,12 @@ void CameraSplatting::trace_packet(const Ray* rays, const bool* active, const fl
         const bool mesh = any_mesh && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
         if (any_mesh) ++c.traced;
         mesh_depth[l] = mesh ? view_depth(rays[l].o + rh.ray.tfar[l] * rays[l].d) : kInf;
-        tiles[l] = tile_of(xs[l], ys[l]);
+        // The tile of the lane's pixel, not of its sample: the lists are binned for every sample of their pixels.
+        tiles[l] = fine_.tile_of(float(packet_x + (l & 3)) + 0.5f, float(packet_y + (l >> 2)) + 0.5f, grid_x0_, grid_y0_);
         pending |= 1u << l;
     }
-    // The lanes of one tile together (all 16, unless jitter carried some samples over a tile's edge).
-    while (pending && !offsets_.empty()) {  // (no offsets: the pre-pass was cancelled)
+    // The lanes of one fine tile together: all 16, unless a tile size that is not a multiple of 4 misaligned the packet.
+    while (pending && !fine_.offsets.empty()) {  // (no offsets: the pre-pass was cancelled)
         const std::size_t tile = tiles[__builtin_ctz(pending)];
         std::uint32_t group = 0;
         for (std::uint32_t p = pending; p; p &= p - 1)

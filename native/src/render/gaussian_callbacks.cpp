@@ -6,9 +6,8 @@
 #include <limits>
 #include <string>
 
-#include <immintrin.h>
-
 #include "render_math.h"
+#include "simd.h"
 
 namespace raysplats {
 namespace {
@@ -17,51 +16,6 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
     *args->bounds_o = chunk->group_bounds[args->primID];
 }
-
-// SIMD policies for the group test: 4 lanes with SSE (the x86-64 baseline; two steps per group) or 8 with AVX2 and
-// FMA, chosen at run time. madd(a, b, c) = a b + c is one fused operation (one rounding) with FMA and a mul and an
-// add with SSE, so the two paths differ in the last bits of t and of the distance (each is deterministic on its
-// machine). FMA made the frames of showroom_1.5M (bench_render, 3 interleaved rounds) 2-4 % faster: stochastic
-// 0.494-0.497 -> 0.480-0.499 s, sorted 1.77-1.79 -> 1.69-1.74 s. (Functions with a target attribute can only be
-// inlined into callers with that target: see the callbacks at the end.)
-struct Sse {
-    using V = __m128;
-    static constexpr int W = 4;
-    static V load(const float* p) { return _mm_load_ps(p); }
-    static V set1(float s) { return _mm_set1_ps(s); }
-    static V add(V a, V b) { return _mm_add_ps(a, b); }
-    static V sub(V a, V b) { return _mm_sub_ps(a, b); }
-    static V mul(V a, V b) { return _mm_mul_ps(a, b); }
-    static V div(V a, V b) { return _mm_div_ps(a, b); }
-    static V le(V a, V b) { return _mm_cmple_ps(a, b); }
-    static V ne(V a, V b) { return _mm_cmpneq_ps(a, b); }
-    static V and_(V a, V b) { return _mm_and_ps(a, b); }
-    static V neg(V a) { return _mm_xor_ps(a, _mm_set1_ps(-0.0f)); }
-    static V madd(V a, V b, V c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }  // a b + c
-    static unsigned bits(V m) { return unsigned(_mm_movemask_ps(m)); }
-    static void store(float* p, V a) { _mm_store_ps(p, a); }
-};
-
-// __m256 passes between these functions by value; all of them are inlined into the AVX2 callbacks, so the ABI
-// note GCC gives (at the end of the file, hence not scoped) concerns no real call.
-#pragma GCC diagnostic ignored "-Wpsabi"
-struct Avx2 {
-    using V = __m256;
-    static constexpr int W = 8;
-    __attribute__((target("avx2,fma"))) static V load(const float* p) { return _mm256_load_ps(p); }
-    __attribute__((target("avx2,fma"))) static V set1(float s) { return _mm256_set1_ps(s); }
-    __attribute__((target("avx2,fma"))) static V add(V a, V b) { return _mm256_add_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V sub(V a, V b) { return _mm256_sub_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V mul(V a, V b) { return _mm256_mul_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V div(V a, V b) { return _mm256_div_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V le(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
-    __attribute__((target("avx2,fma"))) static V ne(V a, V b) { return _mm256_cmp_ps(a, b, _CMP_NEQ_UQ); }
-    __attribute__((target("avx2,fma"))) static V and_(V a, V b) { return _mm256_and_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V neg(V a) { return _mm256_xor_ps(a, _mm256_set1_ps(-0.0f)); }
-    __attribute__((target("avx2,fma"))) static V madd(V a, V b, V c) { return _mm256_fmadd_ps(a, b, c); }
-    __attribute__((target("avx2,fma"))) static unsigned bits(V m) { return unsigned(_mm256_movemask_ps(m)); }
-    __attribute__((target("avx2,fma"))) static void store(float* p, V a) { _mm256_store_ps(p, a); }
-};
 
 // Exact ray test against every lane of a group: returns the mask of lanes whose support (GaussianGroup::support)
 // the ray reaches at a t in [tnear, tfar], and writes t (any sign) and the squared distance of the

@@ -63,6 +63,8 @@ PixelFilterSampler::PixelFilterSampler(PixelFilter filter, float width) : filter
     }
 }
 
+float PixelFilterSampler::reach(PixelFilter filter, float width) { return float(half_support(filter, width)); }
+
 float PixelFilterSampler::position(float u) const {
     if (filter_ == PixelFilter::Box) return 0.5f + width_ * (u - 0.5f);
     const float x = u * float(kInverseEntries - 1);

@@ -20,6 +20,8 @@ public:
     PixelFilterSampler(PixelFilter filter, float width);
     // Where along one axis a sample falls, in pixels from the pixel's left (top) edge, for u uniform in [0, 1).
     float position(float u) const;
+    // The farthest a sample of `filter` falls from its pixel's centre, in pixels, along either axis.
+    static float reach(PixelFilter filter, float width);
 
 private:
     PixelFilter filter_;

@@ -224,7 +224,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                     // (Not before the ray's own start: neighbours' clip starts differ.)
                     if (known * kSpeculativeMargin > rays[l].tmin) ends[l] = known * kSpeculativeMargin;
                 }
-                if (splatting) splatting->trace_packet(rays, active, sample_x, sample_y, rngs, segs, counters);
+                if (splatting) splatting->trace_packet(bx, by, rays, active, sample_x, sample_y, rngs, segs, counters);
                 else tracer.trace_packet(rays, active, ends, rngs, segs, counters);
                 for (int l = 0; l < 16; ++l)
                     if (active[l])

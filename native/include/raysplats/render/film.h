@@ -79,8 +79,10 @@ struct RenderStats {
     std::uint64_t camera_rays = 0;
     std::uint64_t traced_rays = 0;       // every rtcIntersect1/rtcOccluded1 call, including re-traces
     std::uint64_t gaussian_hits = 0;     // Gaussians composited (sorted) or accepted candidates (stochastic)
-    std::uint64_t gaussian_candidates = 0;  // Gaussian intersection tests run by the traversals
-    std::uint64_t gaussian_group_candidates = 0;  // the groups of Gaussians (Embree primitives) they belong to
+    // Gaussian intersection tests run by the traversals, and the groups of Gaussians (Embree primitives) they belong
+    // to; with camera-ray splatting, also the footprint tests of camera samples and the tile-list entries read.
+    std::uint64_t gaussian_candidates = 0;
+    std::uint64_t gaussian_group_candidates = 0;
     // Samples per pixel the film holds: the settings' samples for a finished render; for a cancelled one the
     // sample passes every tile completed (a tile may hold one more, see render()); for a snapshot the passes done.
     // With adaptive sampling, the most any pixel holds (the sample_count channel has each pixel's).
