@@ -48,11 +48,11 @@ class CameraRaySplatting(unittest.TestCase):
     def setUp(self):
         self.scene = donut_scene()
 
-    def test_off_by_default_and_in_the_gaussians_panel(self):
-        self.assertFalse(self.scene.raysplats.camera_ray_splatting)
-        self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
-        self.scene.raysplats.camera_ray_splatting = True
+    def test_on_by_default_and_in_the_gaussians_panel(self):
+        self.assertTrue(self.scene.raysplats.camera_ray_splatting)
         self.assertTrue(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
+        self.scene.raysplats.camera_ray_splatting = False
+        self.assertFalse(sync.render_settings(self.scene, 8, 8, 1)["camera_ray_splatting"])
         self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         self.assertIn("camera_ray_splatting", {s["name"] for s in st.native().render_settings()})
         panel = type("Panel", (), {"layout": _RecordingLayout()})()
@@ -60,6 +60,7 @@ class CameraRaySplatting(unittest.TestCase):
         self.assertIn("camera_ray_splatting", panel.layout.log)
 
     def test_f12_splats_camera_rays_when_on(self):
+        self.scene.raysplats.camera_ray_splatting = False
         traced = st.render_to_array("splatting_off")
         self.assertFalse(final.last_render["camera_ray_splatting"])
         self.scene.raysplats.camera_ray_splatting = True
@@ -87,6 +88,7 @@ class CameraRaySplatting(unittest.TestCase):
         camera = {"matrix": np.array(self.scene.camera.matrix_world, dtype=np.float32), "type": "PERSP",
                   "lens": 50.0, "sensor_width": 36.0}
         engine = type("Engine", (), {})()
+        self.scene.raysplats.camera_ray_splatting = False
         with mock.patch.object(native.core(), "RenderJob", recording_job), \
                 mock.patch.object(viewport, "_start_polling", lambda engine, state: None):
             viewport._start_preview(engine, state, self.scene, "key", camera, 16, 12)
