@@ -67,10 +67,10 @@ order 33.9 / 29.5, front / side). Both parts are what ray tracing 3D Gaussians i
 The views are the scenes' fixed two (front, side), not chosen to pass; the thresholds of small.splat and guitar are
 set below their figures with this explanation.
 
-Camera-ray splatting (RenderSettings::camera_ray_splatting, off by default) is the answer to both parts: camera rays
+Camera-ray splatting (RenderSettings::camera_ray_splatting: off in the core, on in the add-on) is the answer to both parts: camera rays
 draw the Gaussians with the rasterizer's model (EWA footprint with the dilation, one sort by centre depth), so what is
 left is float rounding and the stop rules (the engine composites the Gaussian that takes T below 1e-4, the rasterizer
-stops before it). --table, 640 x 480, DISPLAY, dB against the EWA rasterizer, traced (today's default) / splatted:
+stops before it). --table, 640 x 480, DISPLAY, dB against the EWA rasterizer, traced (the core's default) / splatted (the add-on's):
 
     scene                             front (traced / splatted)   side (traced / splatted)
     small_sh3_inria.ply               30.9 / 76.3                 32.6 / 80.0
