@@ -60,15 +60,17 @@ class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
         layout.prop(settings, "gaussian_mode")
         layout.prop(settings, "compositing")
         layout.prop(settings, "blend_space")
-        # Splatting draws only Baked splats (the core keeps camera rays traced when any object is relit).
-        row = layout.row()
+        # Splatting draws only Baked splats (the core keeps camera rays traced when any object is relit). The check
+        # boxes' long names are split into a heading and the box's text, as Cycles does, so that they fit the
+        # properties editor's default width.
+        row = layout.row(heading="Camera Rays")
         row.active = settings.gaussian_shading == "BAKED"
-        row.prop(settings, "camera_ray_splatting")
+        row.prop(settings, "camera_ray_splatting", text="As Splats")
         layout.prop(settings, "transmittance_threshold")
         layout.prop(settings, "gaussian_shading")
-        row = layout.row()
+        row = layout.row(heading="Shadows")
         row.active = settings.gaussian_shading == "BAKED"
-        row.prop(settings, "meshes_shadow_gaussians")
+        row.prop(settings, "meshes_shadow_gaussians", text="From Meshes")
 
 
 class RAYSPLATS_RENDER_PT_film(RaySplatsPanel, bpy.types.Panel):
