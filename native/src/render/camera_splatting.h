@@ -24,12 +24,12 @@
 // binned into screen tiles (a tile's list is the ranks, in that sort, of the Gaussians that can reach alpha 1/255 in
 // it: the square, intersected with the ellipse where a exp(-q / 2) >= 1/255; 4 bytes an entry), each list in depth
 // order. Unlike the rasterizer's one level of 16 x 16 px tiles, there are two: splats whose square's half side is at
-// most 8 px go into 4 x 4 px tiles, the bigger ones into 16 x 16 px tiles (the reason and figures at
+// most 4 px go into 4 x 4 px tiles, the bigger ones into 16 x 16 px tiles (the reason and figures at
 // CameraSplatting::bin's call). Memory: 56 bytes a Gaussian in view and 4 a tile entry, for the render's duration. A
-// camera sample reads the lists of the fine tile under its position and of the coarse tile holding it, merged by
-// rank; the 16 samples of a 4 x 4 packet of camera rays mostly share a fine tile (the grids are aligned to the
-// packets), and read its lists once, together. The grids cover the render region widened by the pixel filter's
-// reach, so jittered samples always find their tile.
+// tile's lists hold every splat that a sample of its pixels can see wherever the pixel filter's jitter puts it (the
+// tile widened by the filter's reach), so a 4 x 4 packet of camera rays (the grids are aligned to the packets) reads
+// the lists of its own fine tile and of the coarse tile holding it once, for all 16 samples, merged by rank. The grids
+// cover the render region widened by the filter's reach.
 //
 // Applies when the camera is perspective and every Gaussian cloud is BAKED (effective shading): LIT and
 // BAKED_SHADOWED Gaussians are shaded per hit point along the ray and cannot join a screen-space list, so a scene
@@ -98,7 +98,8 @@ public:
     static constexpr int kTileSize = 16;      // pixels, as the 3DGS rasterizer's BLOCK_X x BLOCK_Y
     static constexpr int kFineTileSize = 4;   // pixels: one 4 x 4 packet of camera rays
     // Splats whose square's half side is at most this (pixels) go into the fine lists, the others into the coarse.
-    static constexpr float kFineSplatMaxHalfExtent = 8.0f;
+    // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 costs up to 12 %.)
+    static constexpr float kFineSplatMaxHalfExtent = 4.0f;
 
 private:
     // One level of tile lists: nx x ny square tiles of `size` pixels from the grid's corner (grid_x0_, grid_y0_);
