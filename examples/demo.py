@@ -39,6 +39,7 @@ def enable_addon():
 
 def main():
     args = parse_args()
+    args.out_dir = os.path.abspath(args.out_dir)  # (Blender's save operator refuses a relative path)
     os.makedirs(args.out_dir, exist_ok=True)
     enable_addon()
     from raysplats import cli, io_export

@@ -93,8 +93,9 @@ def render_final(engine, depsgraph):
               f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
               f"{stats.triangles:,} triangles")
         if settings.camera_ray_splatting and not film["camera_ray_splatting"]:
-            engine.report({"WARNING"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
-                                       "this render's camera rays were ray traced")
+            # Information, not a warning: with the setting on by default, every Lit render would otherwise warn.
+            engine.report({"INFO"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
+                                     "this render's camera rays were ray traced")
         passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
         # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now
