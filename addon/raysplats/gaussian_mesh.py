@@ -4,7 +4,8 @@
 import numpy as np
 
 from . import color_adjustment, native
-from .blender_compat import FACE_CORNER_COUNT_IS_WRITABLE, MESH_INDEX_DTYPE, MESH_SELECTION_ATTRIBUTES
+from .blender_compat import (FACE_CORNER_COUNT_IS_WRITABLE, MESH_ARRAY_ATTRIBUTES, MESH_INDEX_DTYPE,
+                             MESH_SELECTION_ATTRIBUTES, UV_MAP_ATTRIBUTE_VALUE_KEY, UV_MAPS_ARE_ATTRIBUTES)
 from .mesh_fast_read import ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribute, read_corner_vertices, \
     read_face_corners, read_uv_map, read_vertex_positions, write_bytes_in_place
 
@@ -33,6 +34,17 @@ UV_MAP = "gs_uv"
 def _indices_in(values):
     """An index array as Blender's foreach_set takes it fastest (a view, no copy)."""
     return np.ascontiguousarray(values, dtype=np.int32).view(MESH_INDEX_DTYPE)
+
+
+def write_mesh_array(mesh, collection, prop, values):
+    """mesh.<collection>.foreach_set(prop, values), through the attribute that holds the array where there is one
+    (blender_compat.MESH_ARRAY_ATTRIBUTES: a hundred times faster on 4.x)."""
+    name, key = MESH_ARRAY_ATTRIBUTES[(collection, prop)]
+    attribute = mesh.attributes.get(name)
+    if attribute is not None:
+        attribute.data.foreach_set(key, values)
+    else:
+        getattr(mesh, collection).foreach_set(prop, values)
 
 
 def sh_attribute_name(k):
@@ -72,17 +84,17 @@ def fill_mesh(mesh, polygons):
     take = polygons.pop
     vertex_positions = take("vertex_positions")
     mesh.vertices.add(len(vertex_positions))
-    mesh.vertices.foreach_set("co", vertex_positions.ravel())
+    write_mesh_array(mesh, "vertices", "co", vertex_positions.ravel())
     del vertex_positions
     edge_vertices = take("edge_vertices")
     mesh.edges.add(len(edge_vertices))
-    mesh.edges.foreach_set("vertices", _indices_in(edge_vertices.ravel()))
+    write_mesh_array(mesh, "edges", "vertices", _indices_in(edge_vertices.ravel()))
     del edge_vertices
     corner_vertices = take("corner_vertices")
     mesh.loops.add(len(corner_vertices))
-    mesh.loops.foreach_set("vertex_index", _indices_in(corner_vertices))
+    write_mesh_array(mesh, "loops", "vertex_index", _indices_in(corner_vertices))
     del corner_vertices
-    mesh.loops.foreach_set("edge_index", _indices_in(take("corner_edges")))
+    write_mesh_array(mesh, "loops", "edge_index", _indices_in(take("corner_edges")))
     face_corner_start = take("face_corner_start")
     mesh.polygons.add(len(face_corner_start))
     mesh.polygons.foreach_set("loop_start", face_corner_start)
@@ -109,7 +121,12 @@ def fill_mesh(mesh, polygons):
 
     write_corner_colors(mesh, take("corner_colors"))
     uv_layer = mesh.uv_layers.new(name=UV_MAP)
-    uv_layer.data.foreach_set("uv", take("corner_uvs").ravel())
+    uvs = np.ascontiguousarray(take("corner_uvs"), dtype=np.float32).ravel()
+    uv_attribute = mesh.attributes.get(UV_MAP) if UV_MAPS_ARE_ATTRIBUTES else None
+    if uv_attribute is not None:
+        uv_attribute.data.foreach_set(UV_MAP_ATTRIBUTE_VALUE_KEY, uvs)
+    else:
+        uv_layer.data.foreach_set("uv", uvs)
     mesh.update()
 
 

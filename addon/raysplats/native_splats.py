@@ -126,7 +126,8 @@ def new_native_splat_data(name, gaussians):
     else:
         data = bpy.data.meshes.new(name)
         data.vertices.add(count)
-        data.vertices.foreach_set("co", np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel())
+        gaussian_mesh.write_mesh_array(data, "vertices", "co",
+                                       np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel())
     _write(data, ATTR_SCALE, "FLOAT_VECTOR", gaussians["scales"])
     _write(data, ATTR_ROTATION, blender_compat.QUATERNION_ATTRIBUTE_TYPE, gaussians["rotations"])
     sh = gaussians["sh"]
