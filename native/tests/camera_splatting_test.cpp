@@ -1,9 +1,8 @@
 // Camera-ray splatting (RenderSettings::camera_ray_splatting, src/render/camera_splatting.h): a single Gaussian's
 // image is the EWA 2D Gaussian of the 3DGS rasterizer, computed here independently in its own (OpenCV) conventions;
 // Gaussians composite in centre-depth order, across the two levels of tile lists too; meshes in front hide them and
-// meshes behind show through them; the render
-// region and jittered samples see the same splats; and where it does not apply the image is the traced one, bit for
-// bit.
+// meshes behind show through them; the render region and jittered samples see the same splats; and where it does not
+// apply the image is the traced one, bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
