@@ -90,7 +90,6 @@ EVALUATED_MESH_COPIES_ON_READ = not _since(3, 6)
 # Blender 3.5 stores UV maps as generic 2D float attributes of the corner domain (before: MLoopUV layers only reachable
 # through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_fast_read.read_uv_map).
 UV_MAPS_ARE_ATTRIBUTES = _since(3, 5)
-UV_MAP_ATTRIBUTE_VALUE_KEY = "vector"  # (a FLOAT2 attribute's values; MeshUVLoop's is "uv")
 
 # Mesh.vertices/edges/polygons.add() select every new element: from 3.4 on in bool attributes of their own (before,
 # flag bits in the MVert/MEdge/MPoly structs). A mesh without them has nothing selected.

@@ -5,7 +5,7 @@ import numpy as np
 
 from . import color_adjustment, native
 from .blender_compat import (FACE_CORNER_COUNT_IS_WRITABLE, MESH_ARRAY_ATTRIBUTES, MESH_INDEX_DTYPE,
-                             MESH_SELECTION_ATTRIBUTES, UV_MAP_ATTRIBUTE_VALUE_KEY, UV_MAPS_ARE_ATTRIBUTES)
+                             MESH_SELECTION_ATTRIBUTES, UV_MAPS_ARE_ATTRIBUTES)
 from .mesh_fast_read import ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribute, read_corner_vertices, \
     read_face_corners, read_uv_map, read_vertex_positions, write_bytes_in_place
 
@@ -124,7 +124,7 @@ def fill_mesh(mesh, polygons):
     uvs = np.ascontiguousarray(take("corner_uvs"), dtype=np.float32).ravel()
     uv_attribute = mesh.attributes.get(UV_MAP) if UV_MAPS_ARE_ATTRIBUTES else None
     if uv_attribute is not None:
-        uv_attribute.data.foreach_set(UV_MAP_ATTRIBUTE_VALUE_KEY, uvs)
+        uv_attribute.data.foreach_set(ATTRIBUTE_VALUE_PROPERTY["FLOAT2"], uvs)
     else:
         uv_layer.data.foreach_set("uv", uvs)
     mesh.update()

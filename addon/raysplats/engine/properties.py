@@ -65,8 +65,8 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
         description="How splats' colours are produced (objects can override it in their Gaussian Splats panel)")
     # On by default: splatted, an unedited scene shows what its viewer shows (62-80 dB against the EWA rasterizer, traced
     # 26-36 dB), and a sample costs less than a traced sorted one in every view measured but the farthest: showroom_1.5M
-    # from inside at 1000 x 650, 8 samples, 1.9 s against 7.1 s traced; seen whole from 30 times its size away
-    # (blender_gui.viewport_rendered_showroom's F12 camera), 16 samples, 1.2 s against 0.64 s (README, Camera Rays as
+    # from inside at 1000 x 650, 8 samples, 1.87 s against 6.70 s traced; seen whole from 30 times its size away
+    # (blender_gui.viewport_rendered_showroom's F12 camera), 16 samples, 1.24 s against 0.60 s (README, Camera Rays as
     # Splats, has the figures).
     camera_ray_splatting: BoolProperty(
         name="Camera Rays as Splats", default=True,

@@ -24,11 +24,11 @@ constexpr float kDilation = 0.3f;           // px^2 added to the 2D covariance's
 constexpr float kJacobianClamp = 1.3f;      // x/z and y/z clamped to 1.3 x the frustum's half extent (3DGS)
 constexpr float kFootprintSigmas = 3.0f;    // square half side in standard deviations (3DGS getRect's radius)
 
-// Pixels of the pixel filter's reach around a pixel (pixel_filter.h: box w / 2, Gaussian 3 w / 2, Blackman-Harris w),
-// rounded up, plus one: camera samples fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of
-// pixels (from the region's corner) each lie in one tile.
+// Pixels of the pixel filter's reach around a pixel (PixelFilterSampler::reach), rounded up, plus one: camera samples
+// fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of pixels (from the region's corner) each
+// lie in one tile.
 int filter_margin(const RenderSettings& st) {
-    const int reach = (st.jitter ? int(std::ceil(1.5f * st.filter_width)) : 0) + 1;
+    const int reach = (st.jitter ? int(std::ceil(PixelFilterSampler::reach(st.pixel_filter, st.filter_width))) : 0) + 1;
     return (reach + 3) / 4 * 4;
 }
 
@@ -315,13 +315,22 @@ inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lane
     // instead of one per lane. A 4 x 4 packet covers a sixteenth of a 16 px tile, and a zoomed-out view of a big scene
     // has thousands of small splats per tile list (showroom_1.5M whole at 640 x 360, 128 samples: the F12 took 7.5x
     // the traced render's time before this test).
+    // With it, the lanes' samples and mesh depths, lanes not in `lanes` far off the image and in front of everything.
     float x0 = std::numeric_limits<float>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+    alignas(16) float px[16], py[16], pz[16];
+    for (int l = 0; l < 16; ++l) {
+        px[l] = py[l] = -1e15f;
+        pz[l] = -kInf;
+    }
     for (std::uint32_t live = lanes; live; live &= live - 1) {
         const int l = __builtin_ctz(live);
         x0 = std::min(x0, xs[l]);
         x1 = std::max(x1, xs[l]);
         y0 = std::min(y0, ys[l]);
         y1 = std::max(y1, ys[l]);
+        px[l] = xs[l];
+        py[l] = ys[l];
+        pz[l] = mesh_depth[l];
     }
     // The coarse tile holding the fine one, and the two lists' ranges; a splat is in one level, so merging them by
     // rank (= depth order) visits each splat once, front to back.
@@ -338,18 +347,6 @@ inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lane
     for (std::ptrdiff_t k = 0; k < kPrefetch; ++k) {
         if (coarse + k < coarse_end) __builtin_prefetch(&splats_[coarse[k]]);
         if (fine + k < fine_end) __builtin_prefetch(&splats_[fine[k]]);
-    }
-    // The lanes' samples and mesh depths, with lanes not in `lanes` far off the image and in front of everything.
-    alignas(16) float px[16], py[16], pz[16];
-    for (int l = 0; l < 16; ++l) {
-        px[l] = py[l] = -1e15f;
-        pz[l] = -kInf;
-    }
-    for (std::uint32_t live = lanes; live; live &= live - 1) {
-        const int l = __builtin_ctz(live);
-        px[l] = xs[l];
-        py[l] = ys[l];
-        pz[l] = mesh_depth[l];
     }
     while (lanes && (coarse != coarse_end || fine != fine_end)) {
         const bool take_fine = coarse == coarse_end || (fine != fine_end && *fine < *coarse);
