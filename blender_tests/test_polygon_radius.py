@@ -1,4 +1,4 @@
-# The opacity-aware polygon radius (DESIGN §5): each face of an imported scene spans only where its Gaussian is
+# The opacity-aware polygon radius (docs/design.md §5): each face of an imported scene spans only where its Gaussian is
 # visible, rho_i = min(rho, sqrt(2 ln(255 a))), stored in the face attribute gs_radius; Gaussians below 1/255 are not
 # imported and the import says how many. Recovery (export, the render engine) divides by each face's own rho_i, so
 # faces moved by an edit still give back their Gaussians; faces without the attribute use the object's rho.

@@ -1,6 +1,6 @@
 # Material Preview against the render: how close EEVEE's drawing of an imported splat scene (the import
-# material's falloff alpha, DESIGN §5) comes to the RaySplats render of the same scene from the same camera, with
-# the material's stochastic transparency (Alpha Hashed / Dithered, today's import) and with alpha Blend (the
+# material's falloff alpha, docs/design.md §5) comes to the RaySplats render of the same scene from the same camera,
+# with the material's stochastic transparency (Alpha Hashed / Dithered, today's import) and with alpha Blend (the
 # import before issue 12). Prints a table of PSNR (dB) per scene, view and mode.
 #
 # EEVEE needs an OpenGL context, which Blender in --background mode may not have: run Blender with a window, on a

@@ -1,4 +1,4 @@
-# Every fact about how the Blender versions RaySplats supports (3.4 to 5.x, DESIGN §9) differ, in one place.
+# Every fact about how the Blender versions RaySplats supports (3.4 to 5.x, docs/design.md §9) differ, in one place.
 # Each name says what differs; its definition says since which version, and the comment why it matters here.
 # Callers import these names and never test bpy.app.version or probe the API themselves, so that supporting a new
 # Blender means reading this one file.

@@ -1,12 +1,12 @@
-// The editing bridge of DESIGN §5: every Gaussian becomes one flat K-gon in a Blender mesh, and any polygon
+// The editing bridge of docs/design.md §5: every Gaussian becomes one flat K-gon in a Blender mesh, and any polygon
 // the user leaves behind becomes a Gaussian again, by moments.
 //
 //   v_k = m + rho_i (s1 cos θ_k a1 + s2 sin θ_k a2),  θ_k = 2πk/K             (import)
 //   m = (1/K) Σ v_k,  C = (1/K) Σ (v_k - m)(v_k - m)^T = (rho_i²/2)(s1² a1a1^T + s2² a2a2^T)
 //   eigen(C): λ1 >= λ2 >= λ3  ->  s1 = sqrt(2 λ1)/rho_i, s2 = sqrt(2 λ2)/rho_i      (recovery)
 //
-// rho_i is the face's own radius (DESIGN §5, "Opacity-aware radius"): the polygon spans only where the Gaussian is
-// visible, rho_i = min(rho, sqrt(2 ln(255 a_i))), stored per face; Gaussians with a_i < 1/255 get no face.
+// rho_i is the face's own radius (docs/design.md §5, "Opacity-aware radius"): the polygon spans only where the Gaussian
+// is visible, rho_i = min(rho, sqrt(2 ln(255 a_i))), stored per face; Gaussians with a_i < 1/255 get no face.
 // The recovery is exact under any affine map of the polygon (for every rho_i), so object transforms, modifiers,
 // lattices and armatures all move Gaussians correctly. Colour SH are kept in each face's local frame F = [e1, e2, n]
 // (e1: centre -> vertex 0, n: the face normal by winding): SH_local = D(F^T) SH_world on import,
@@ -39,7 +39,7 @@ struct PolygonSettings {
 // below which the reference 3DGS rasteriser skips a Gaussian.
 constexpr double kVisibleOpacity = 1.0 / 255.0;
 
-// rho_i of DESIGN §5: how far (in Mahalanobis radius) a Gaussian of opacity a is visible, at most rho:
+// rho_i of docs/design.md §5: how far (in Mahalanobis radius) a Gaussian of opacity a is visible, at most rho:
 //   a·exp(-r²/2) >= 1/255  <=>  r <= sqrt(2 ln(255 a)),    rho_i = min(rho, sqrt(2 ln(255 a)))
 // computed in double and rounded once to float, so rho_i == rho bit for bit when the cap applies (a >= 0.353 at
 // rho = 3). 0 when nothing is visible: a < 1/255 (no float equals 1/255 exactly), a NaN.

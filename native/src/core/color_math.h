@@ -51,7 +51,7 @@ inline float srgb_to_linear_clamped(float c) { return srgb_to_linear(clamp_unit(
 inline float linear_to_srgb_clamped(float c) { return linear_to_srgb(clamp_unit(c)); }
 
 // Display (sRGB) colour channel of a Gaussian's degree-0 SH coefficient f_dc, 0.5 + SH_C0 f_dc (reference 3DGS
-// SH2RGB; DESIGN §4), unclamped, and its inverse.
+// SH2RGB; docs/design.md §4), unclamped, and its inverse.
 inline double sh_dc_to_display(double f_dc) { return 0.5 + kShC0 * f_dc; }
 inline double display_to_sh_dc(double display) { return (display - 0.5) / kShC0; }
 // The same in single precision, as the renderer precomputes degree-0 colours (its images depend on this rounding,
@@ -59,7 +59,7 @@ inline double display_to_sh_dc(double display) { return (display - 0.5) / kShC0;
 inline float sh_dc_to_display_single(float f_dc) { return 0.5f + float(kShC0) * f_dc; }
 
 // Linear colour channel of a Gaussian's degree-0 SH term for mesh colour attributes: the display value clamped to
-// [0, 1] (DESIGN §4) and decoded.
+// [0, 1] (docs/design.md §4) and decoded.
 inline float sh_dc_to_linear_unit(double f_dc) { return srgb_to_linear_clamped(float(sh_dc_to_display(f_dc))); }
 
 // A value in [0, 1] as a byte, rounded (clamped first; NaN gives 0), as 8-bit colours store it.

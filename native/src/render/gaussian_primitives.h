@@ -21,8 +21,8 @@
 namespace raysplats {
 
 constexpr float kGaussianSupportSq = 9.0f;          // Mahalanobis radius 3
-constexpr float kMinAlpha = 1.0f / 255.0f;          // DESIGN §6: hits below this are skipped
-constexpr float kMaxAlpha = 0.99f;                  // DESIGN §6: alpha clamp
+constexpr float kMinAlpha = 1.0f / 255.0f;          // docs/design.md §6: hits below this are skipped
+constexpr float kMaxAlpha = 0.99f;                  // docs/design.md §6: alpha clamp
 
 struct alignas(16) GaussianPrimitive {
     glm::vec3 center;

@@ -1,6 +1,6 @@
-// The tile loop of render() (DESIGN §6): sample passes over the image, tiles in parallel within each, camera rays as 4 x 4 packets whose
-// first segments the Gaussian segment tracer traces together (gaussian_segment_tracer.h) and whose paths the path
-// integrator follows one by one (path_integrator.h).
+// The tile loop of render() (docs/design.md §6): sample passes over the image, tiles in parallel within each, camera
+// rays as 4 x 4 packets whose first segments the Gaussian segment tracer traces together (gaussian_segment_tracer.h)
+// and whose paths the path integrator follows one by one (path_integrator.h).
 #include "raysplats/render/renderer.h"
 
 #include <algorithm>
