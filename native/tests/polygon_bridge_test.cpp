@@ -159,7 +159,7 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
     }
 }
 
-// Imports store no thickness (issue 17): recovery takes each face's from its rest scales, so an edited face (here every
+// Imports store no thickness: recovery takes each face's from its rest scales, so an edited face (here every
 // face, moved) comes back exactly as with the thickness stored; without rest scales either, the polygon is flat.
 TEST(PolygonBridge, RecoveryWithoutThicknessTakesItFromTheRestScales) {
     GaussianCloud c = random_cloud(100, 0, 77);

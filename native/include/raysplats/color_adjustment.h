@@ -1,4 +1,4 @@
-// Colour adjustments of a Gaussian object (issue 13): exposure, brightness, saturation, hue and temperature, applied
+// Colour adjustments of a Gaussian object: exposure, brightness, saturation, hue and temperature, applied
 // to the Gaussians' SH so that the render, the viewport's colour attribute and every export show the same colours.
 //
 // All five are affine maps of the display colour c (docs/design.md §4: c(d) = 0.5 + Σ_k Y_k(d) f_k, sRGB display

@@ -104,8 +104,8 @@ PolygonMeshView mesh_view(const SplatPolygons& polygons);
 // of polygons made by gaussians_to_polygons.
 struct SplatFaceAttributesView {
     const float* opacity = nullptr;          // F
-    // Null: each face's gaussian_thickness(rest_scales) (0 without rest scales): Blender imports since issue 17 store
-    // no thickness, since it follows from the rest scales every imported face carries.
+    // Null: each face's gaussian_thickness(rest_scales) (0 without rest scales): Blender imports store no
+    // thickness, since it follows from the rest scales every imported face carries.
     const float* thickness = nullptr;        // F
     // rho_i of each face: recovery divides by it. A value that is not a positive finite number (0 is what Blender
     // gives faces the user adds), or no array (files from before per-face radii), means RecoveryOptions' rho.
@@ -166,7 +166,7 @@ std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const fl
 
 // rho_i of each face read back from its polygon UVs: gaussians_to_polygons puts the corner at angle 0 at exactly
 // (rho_i, 0), so it is the u of the face's corner whose v is 0 and u positive (bit for bit what was stored); 0, which
-// means RecoveryOptions' rho, where no corner is. Blender imports since issue 17 keep no per-face radius attribute: the
+// means RecoveryOptions' rho, where no corner is. Blender imports keep no per-face radius attribute: the
 // UV map, which the material needs anyway, holds it. Multi-threaded.
 std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
 

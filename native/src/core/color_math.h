@@ -23,8 +23,8 @@ inline float linear_to_srgb(float c) {
 
 // srgb_to_linear for the renderer's per-pixel conversions (BlendSpace::Display): on [0, 1) by linear interpolation in
 // a table of 4097 values of the exact curve (the interpolation error is at most f'' h^2 / 8 = 3.0 / 4096^2 / 8 =
-// 2.2e-8, below the float resolution of the result near 1), elsewhere srgb_to_linear. About 10x cheaper than the
-// powf it replaces, which cost display-space renders 0.2 us of CPU per pixel sample (bench_render).
+// 2.2e-8, below the float resolution of the result near 1), elsewhere srgb_to_linear. About 10x cheaper than powf,
+// which made display-space renders measurably slower (bench_render; docs/benchmarks.md).
 inline float srgb_to_linear_tabulated(float c) {
     struct Table {
         float v[4097];

@@ -443,7 +443,7 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             // Without rest attributes every face is taken as a Gaussian; with them, zero rest scales (the value
             // Blender gives new faces) mark a face the user added.
             const bool is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
-            // The stored thickness, else (imports since issue 17 store none) the one of the face's rest scales.
+            // The stored thickness, else (current imports store none) the one of the face's rest scales.
             const double thickness = is_added ? 0.0
                 : attr.thickness ? double(attr.thickness[f]) : rest_s ? double(gaussian_thickness(rest_s)) : 0.0;
             // The face's own rho_i (docs/design.md §5); the object's rho where the face has none (0: added by

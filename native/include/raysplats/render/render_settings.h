@@ -55,8 +55,8 @@ struct RenderSettings {
     // k of the per-ray k-nearest buffer (1 .. 128). Any k gives the same image; it trades re-traces against
     // culling. The buffer is also cut where the transmittance falls below the threshold. 96 covers the ~34
     // Gaussians an indoor ray composites (showroom_1.5M) with room for the out-of-order arrivals of a traversal, so
-    // rays are rarely re-traced: bench_render, CPU time per ray k = 16 / 32 / 48 / 64 / 96 / 128:
-    // 5.6 / 3.6 / 3.1 / 2.8 / 2.7 / 2.7 us.
+    // rays are rarely re-traced; larger k gained nothing (bench_render; docs/benchmarks.md has the CPU time per ray
+    // for each k).
     int gather_buffer_size = 96;
     // Samples spread around the pixel centre by the pixel filter; when false every sample goes through the centre.
     bool jitter = true;
