@@ -90,7 +90,7 @@ class ExportLimit(unittest.TestCase):
         bpy.ops.object.select_all(action="DESELECT")
         self.unicorn.select_set(True)
         self.assertEqual(len(st.export_file("selected.ply", limit_to="SELECTED")["opacities"]), self.unicorn_count)
-        # The README's stable keyword from before Limit to still selects.
+        # The stable keyword from before Limit to (docs/reference.md) still selects.
         self.assertEqual(len(st.export_file("selected_old.ply", use_selection=True)["opacities"]), self.unicorn_count)
         path = st.tmp_file("selected_old.glb")
         self.assertEqual(bpy.ops.export_scene.raysplats_mesh(filepath=path, use_selection=True), {"FINISHED"})

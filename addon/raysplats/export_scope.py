@@ -54,5 +54,5 @@ def describe(limit_to):
 
 def limit_of(limit_to, use_selection=False):
     """The Limit to of an export operator: `use_selection`, the keyword of scripts written before Limit to (and the
-    README's stable interface), still means the selection."""
+    stable interface, docs/reference.md), still means the selection."""
     return "SELECTED" if use_selection else limit_to
