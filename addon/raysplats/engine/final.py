@@ -69,7 +69,10 @@ def render_final(engine, depsgraph):
     started = time.perf_counter()
     job = None
     try:
-        job = core.RenderJob(render_scene, camera, render_settings)
+        # Blender's thread count (Output > Performance > Threads, or `blender -t N`, which render farms set per worker
+        # slot): RenderSettings.threads is the effective count, the system's when set to Auto. The image does not
+        # depend on it (each pixel sample's random numbers follow from the seed, the pixel and the sample).
+        job = core.RenderJob(render_scene, camera, render_settings, max_threads=scene.render.threads)
         shown_samples, shown_at = 0, started
         while not job.wait(POLL_SECONDS):
             if engine.test_break():

@@ -78,6 +78,11 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
         description="Baked splats: darken Gaussians whose centres meshes hide from the lights (Baked + Shadows "
                     "shadows each point seen, by meshes and splats)")
     seed: IntProperty(name="Seed", default=0, min=0, description="Seed of the sampling pattern")
+    # Cycles' name, default and text (Sampling > Advanced > Seed, the clock button beside it); the seed of a frame is
+    # then sync.frame_seed's hash of the frame and this seed, as Cycles computes it.
+    use_animated_seed: BoolProperty(
+        name="Animate Seed", default=False,
+        description="Use different seed values (and hence noise patterns) at different frames")
     # Cycles' defaults (Blackman-Harris, 1.5 px), so that renders compare with Cycles'; Box at 1 px is the plain
     # in-pixel jitter of RaySplats before filters.
     pixel_filter: EnumProperty(

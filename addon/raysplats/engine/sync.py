@@ -468,13 +468,47 @@ def camera_settings(scene, camera_object, width, height):
     return camera
 
 
+def _hash_uint2(kx, ky):
+    """Bob Jenkins' lookup3 hash of two 32-bit words (its final() mix), as Cycles' hash_uint2 (util/hash.h)."""
+    mask = 0xFFFFFFFF
+
+    def rot(x, k):
+        return ((x << k) | (x >> (32 - k))) & mask
+
+    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & mask
+    b = (b + (ky & mask)) & mask
+    a = (a + (kx & mask)) & mask
+    c ^= b; c = (c - rot(b, 14)) & mask
+    a ^= c; a = (a - rot(c, 11)) & mask
+    b ^= a; b = (b - rot(a, 25)) & mask
+    c ^= b; c = (c - rot(b, 16)) & mask
+    a ^= c; a = (a - rot(c, 4)) & mask
+    b ^= a; b = (b - rot(a, 14)) & mask
+    c ^= b; c = (c - rot(b, 24)) & mask
+    return c
+
+
+def frame_seed(scene):
+    """The sampling seed of the scene's current frame: the scene's seed, or with Animate Seed Cycles' per-frame seed
+    (intern/cycles/blender/sync.cpp, sync_integrator): hash_uint2(frame, seed), plus hash_uint2(subframe * INT_MAX,
+    seed) on a subframe; 32 bits, as the core's seed is. A function of the frame alone, so that any worker of a farm
+    renders a frame with the same seed."""
+    settings = scene.raysplats
+    if not settings.use_animated_seed:
+        return settings.seed
+    seed = _hash_uint2(scene.frame_current, settings.seed)
+    if scene.frame_subframe != 0.0:
+        seed += _hash_uint2(int(scene.frame_subframe * 2147483647.0), settings.seed)
+    return seed & 0xFFFFFFFF
+
+
 def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False):
     """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
     viewport refines in passes of its own and leaves it off)."""
     settings = scene.raysplats
     values = {
         "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
-        "seed": settings.seed + seed_offset, "compositing": settings.compositing,
+        "seed": (frame_seed(scene) + seed_offset) & 0xFFFFFFFF, "compositing": settings.compositing,
         "blend_space": settings.blend_space, "camera_ray_splatting": settings.camera_ray_splatting,
         "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
         "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,

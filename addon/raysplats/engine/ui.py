@@ -47,7 +47,9 @@ class RAYSPLATS_RENDER_PT_sampling(RaySplatsPanel, bpy.types.Panel):
         sub.active = settings.use_adaptive_sampling
         sub.prop(settings, "adaptive_min_samples", text="Min Samples")
         layout.prop(settings, "viewport_samples", text="Viewport")
-        layout.prop(settings, "seed")
+        row = layout.row(align=True)
+        row.prop(settings, "seed")
+        row.prop(settings, "use_animated_seed", text="", icon="TIME")
 
 
 class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):

@@ -1,0 +1,109 @@
+# farm/install_worker.sh on a worker's Blender, each case in a fresh user folder: the extension zip installs and the
+# worker renders with it in a new Blender process; a zip without the native module, or with only another Python's,
+# and a file that is no extension zip fail with a non-zero status and a message that says why.
+#   python3 test_install_worker.py --zip dist/raysplats-0.1.0-linux_x64.zip --tmp-dir DIR
+#           [--blender blender | --bpy-python ~/.cache/raysplats/bpy45-venv/bin/python]
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import unittest
+import zipfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+INSTALL = os.path.join(os.path.dirname(HERE), "install_worker.sh")
+ARGS = None
+
+
+def install(case, zip_path=None):
+    """Runs install_worker.sh with a fresh user folder; returns (status, stdout + stderr, user folder)."""
+    user = os.path.join(ARGS.tmp_dir, case)
+    shutil.rmtree(user, ignore_errors=True)
+    os.makedirs(user)
+    command = [INSTALL]
+    command += ["--bpy-python", ARGS.bpy_python] if ARGS.bpy_python else ["--blender", ARGS.blender]
+    if zip_path:
+        command.append(zip_path)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=user, TMPDIR=ARGS.tmp_dir)
+    run = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+    return run.returncode, run.stdout + run.stderr, user
+
+
+def variant(name, drop):
+    """A copy of the zip without the members `drop` picks (stored, not compressed: it is read once)."""
+    path = os.path.join(ARGS.tmp_dir, name)
+    with zipfile.ZipFile(ARGS.zip) as source, zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as target:
+        for info in source.infolist():
+            if not drop(info.filename):
+                target.writestr(info.filename, source.read(info))
+    return path
+
+
+class InstallWorker(unittest.TestCase):
+    def test_installs_and_renders(self):
+        status, output, user = install("ok", ARGS.zip)
+        self.assertEqual(status, 0, output)
+        self.assertIn("check_worker: RAYSPLATS works in Blender", output)
+        # The add-on the fresh process rendered with is the installed copy, in this user folder.
+        self.assertRegex(output, r"add-on \S*raysplats at " + os.path.realpath(user))
+        self.assertIn(f"_native.cpython-{sys.version_info.major}{sys.version_info.minor}", output)
+
+    def test_zip_without_the_native_module_fails(self):
+        status, output, _ = install("no_native", variant("no_native.zip", lambda n: n.startswith("_native")))
+        self.assertEqual(status, 1, output)
+        self.assertIn("native module", output)
+        self.assertIn("the add-on has no native module", output)
+        self.assertIn("install_worker: the worker cannot render with RaySplats", output)
+
+    def test_zip_for_another_python_fails(self):
+        # Only the module of Blender 5.1+ (Python 3.13): a Blender with Python 3.11 cannot load it.
+        zip_path = variant("python313_only.zip", lambda n: n.startswith("_native.cpython-311"))
+        status, output, _ = install("wrong_python", zip_path)
+        self.assertEqual(status, 1, output)
+        self.assertIn("Python 3.11", output)
+        self.assertIn("_native.cpython-313-x86_64-linux-gnu.so", output)  # what the add-on has instead
+
+    def test_not_an_extension_zip_fails(self):
+        zip_path = variant("no_manifest.zip", lambda n: n == "blender_manifest.toml")
+        status, output, _ = install("no_manifest", zip_path)
+        self.assertEqual(status, 1, output)
+        self.assertIn("no_manifest.zip is not the RaySplats extension zip: no blender_manifest.toml", output)
+
+
+class SourceTreeInstall(unittest.TestCase):
+    """Blender 3.x without a zip: scripts/install_addon.sh links the source tree's add-on."""
+
+    def test_links_the_source_tree_and_renders(self):
+        status, output, user = install("source_tree")
+        self.assertEqual(status, 0, output)
+        self.assertIn("check_worker: RAYSPLATS works in Blender 3.", output)
+        link = os.path.join(user, "scripts", "addons", "raysplats")
+        self.assertTrue(os.path.islink(link), link)
+        self.assertEqual(os.path.realpath(link), os.path.join(os.path.dirname(os.path.dirname(HERE)), "addon", "raysplats"))
+
+
+def main():
+    global ARGS
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--zip", required=True)
+    parser.add_argument("--tmp-dir", required=True)
+    parser.add_argument("--blender", default="blender")
+    parser.add_argument("--bpy-python")
+    parser.add_argument("--source-tree", action="store_true", help="also install from the source tree (Blender 3.x)")
+    ARGS = parser.parse_args()
+    ARGS.tmp_dir = os.path.abspath(ARGS.tmp_dir)
+    ARGS.zip = os.path.abspath(ARGS.zip)
+    os.makedirs(ARGS.tmp_dir, exist_ok=True)
+    loader = unittest.TestLoader()
+    suite = loader.loadTestsFromTestCase(InstallWorker)
+    if ARGS.source_tree:
+        suite.addTests(loader.loadTestsFromTestCase(SourceTreeInstall))
+    result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+    print(f"{result.testsRun - len(result.failures) - len(result.errors)} passed, "
+          f"{len(result.failures) + len(result.errors)} failed")
+    sys.exit(0 if result.wasSuccessful() and result.testsRun else 1)
+
+
+if __name__ == "__main__":
+    main()
