@@ -29,6 +29,12 @@ import traceback
 
 import bpy
 
+# Imported as a module of an installed extension (bl_ext.<repository>.raysplats.cli, Blender 4.2+: how a farm job runs
+# it, farm/openjd/raysplats_convert.yaml), the add-on is not importable as `raysplats`, the name the functions below
+# import it by: give it that name. Its modules are attributes of the package (its __init__ imports them all), so no
+# second copy of any is loaded.
+if __package__ and __package__ != "raysplats" and __package__.endswith(".raysplats"):
+    sys.modules.setdefault("raysplats", sys.modules[__package__])
 
 
 # Format names and extensions come from the add-on (which takes the splat formats from the core); it is
