@@ -36,6 +36,16 @@ def _enabled_addon():
     return names[0] if names else None
 
 
+def _enable_installed_extension():
+    """Enables RaySplats from the extension repository it is installed in (Blender 4.2+), as a job script that uses
+    Blender as a Python module does: bpy.ops.preferences.addon_enable(module="bl_ext.user_default.raysplats")."""
+    for repo in bpy.context.preferences.extensions.repos:
+        folder = repo.custom_directory if repo.use_custom_directory else repo.directory
+        if repo.enabled and os.path.isdir(os.path.join(folder, "raysplats")):
+            bpy.ops.preferences.addon_enable(module=f"bl_ext.{repo.module}.raysplats")
+            return
+
+
 def _render_check(package):
     """Renders an empty 8 x 8 scene (camera, world colour) with the engine and returns the mean error of its pixels
     against the world colour (written as a Standard-view PNG, read back)."""
@@ -45,6 +55,11 @@ def _render_check(package):
     scene.camera = camera
     scene.world = bpy.data.worlds.new("raysplats_worker_check")
     scene.world.color = WORLD_COLOR
+    # A world made in Blender 5.0+ has a node tree, whose Background colour is what renders.
+    for node in scene.world.node_tree.nodes if scene.world.node_tree else ():
+        if node.type == "BACKGROUND":
+            node.inputs["Color"].default_value = (*WORLD_COLOR, 1.0)
+            node.inputs["Strength"].default_value = 1.0
     scene.render.engine = ENGINE
     scene.render.resolution_x = scene.render.resolution_y = 8
     scene.render.resolution_percentage = 100
@@ -72,9 +87,9 @@ def _render_check(package):
 def check():
     """Returns (ok, message)."""
     if AS_MODULE:
-        # Blender as a Python module starts from factory preferences; a worker's job script reads the user's, with
-        # the add-ons they enable, as Blender itself does at startup.
-        bpy.ops.wm.read_userpref()
+        # Blender as a Python module starts from factory preferences, with no extension enabled (reading the user's,
+        # bpy.ops.wm.read_userpref, crashes the 4.2 module): a job script enables the installed extension itself.
+        _enable_installed_extension()
     name = _enabled_addon()
     if name is None:
         return False, (f"the RaySplats add-on is not enabled in {_blender()} (user folder "
