@@ -1,7 +1,8 @@
-# farm/install_worker.sh on a worker's Blender, each case in a fresh user folder: the extension zip installs and the
-# worker renders with it in a new Blender process; a zip without the native module, or with only another Python's,
-# and a file that is no extension zip fail with a non-zero status and a message that says why.
-#   python3 test_install_worker.py --zip dist/raysplats-0.1.0-linux_x64.zip --tmp-dir DIR
+# farm/install_worker.sh on a worker's Blender, each case in a fresh user folder: the extension zip installs, the
+# worker renders with it in a new Blender process and runs its command line as a farm job does; a zip without the
+# native module, or with only another Python's, and a file that is no extension zip fail with a non-zero status and
+# a message that says why.
+#   python3 test_install_worker.py --zip dist/raysplats-0.1.0-linux_x64.zip --data-dir ../shared/data --tmp-dir DIR
 #           [--blender blender | --bpy-python ~/.cache/raysplats/bpy45-venv/bin/python]
 import argparse
 import os
@@ -49,6 +50,38 @@ class InstallWorker(unittest.TestCase):
         self.assertRegex(output, r"add-on \S*raysplats at " + os.path.realpath(user))
         self.assertIn(f"_native.cpython-{sys.version_info.major}{sys.version_info.minor}", output)
 
+    def test_installed_command_line_converts(self):
+        # The add-on's command line as a farm job runs it (farm/openjd/raysplats_convert.yaml): imported from the
+        # enabled add-on, "raysplats" on 3.x, "bl_ext.user_default.raysplats" as an extension.
+        status, output, user = install("cli", ARGS.zip)
+        self.assertEqual(status, 0, output)
+        target = os.path.join(ARGS.tmp_dir, "cli_out", "small.spz")
+        shutil.rmtree(os.path.dirname(target), ignore_errors=True)
+        runner = (
+            "import importlib, os, sys\n"
+            "import bpy\n"
+            "if not bpy.app.binary_path:  # Blender as a module: enable the installed extension, as a job script does\n"
+            "    bpy.ops.preferences.addon_enable(module='bl_ext.user_default.raysplats')\n"
+            "name = next(n for n in bpy.context.preferences.addons.keys() if n.rsplit('.', 1)[-1] == 'raysplats')\n"
+            "print('RUNNING', name)\n"
+            "try:\n"
+            "    importlib.import_module(name + '.cli').main(sys.argv[sys.argv.index('--') + 1:])\n"
+            "except SystemExit as done:\n"
+            "    sys.stdout.flush()\n"
+            "    os._exit(done.code)\n")
+        args = ["--", "convert", os.path.join(ARGS.data_dir, "small.splat"), "-o", os.path.dirname(target),
+                "--format", "spz"]
+        if ARGS.bpy_python:
+            command = [ARGS.bpy_python, "-c", runner] + args
+        else:
+            command = [ARGS.blender, "-b", "-noaudio", "--python-expr", runner] + args
+        run = subprocess.run(command, env=dict(os.environ, BLENDER_USER_RESOURCES=user), capture_output=True,
+                             text=True, timeout=300)
+        self.assertEqual(run.returncode, 0, run.stdout + run.stderr)
+        self.assertRegex(run.stdout, r"RUNNING \S*raysplats")
+        self.assertIn("raysplats convert: 1 of 1 done", run.stdout)
+        self.assertGreater(os.path.getsize(target), 22_764 * 8)  # small.splat's 22,764 Gaussians, a few bytes each
+
     def test_zip_without_the_native_module_fails(self):
         status, output, _ = install("no_native", variant("no_native.zip", lambda n: n.startswith("_native")))
         self.assertEqual(status, 1, output)
@@ -88,6 +121,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--zip", required=True)
     parser.add_argument("--tmp-dir", required=True)
+    parser.add_argument("--data-dir", required=True, help="the real scenes (shared/data)")
     parser.add_argument("--blender", default="blender")
     parser.add_argument("--bpy-python")
     parser.add_argument("--source-tree", action="store_true", help="also install from the source tree (Blender 3.x)")
