@@ -434,10 +434,12 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
     for (int l = 0; l < 16 && any_mesh; ++l) {
         const Ray& r = rays[l];
         valid[l] = active[l] ? -1 : 0;
-        set_packet_lane(rh, l, r, r.tmax);
+        if (active[l]) set_packet_lane(rh, l, r, r.tmax);
+        else set_packet_lane_inactive(rh, l);
     }
     if (any_mesh) {
-        TraceContext ctx(lanes, TraceMode::MeshesOnly);
+        // Gaussians are ignored (MeshesOnly); rays come back in the packet's order on every Embree path.
+        TraceContext ctx(lanes, 16, TraceMode::MeshesOnly);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
         rtcIntersect16(valid, s_.scene, &ctx, &rh);
     }
