@@ -129,7 +129,7 @@ def srgb_to_linear(c):
 
 
 def visible_radius(alpha):
-    """rho_i of DESIGN §5: where a·exp(-r²/2) falls to 1/255, at most RHO (0 when a <= 1/255)."""
+    """rho_i of docs/design.md §5: where a·exp(-r²/2) falls to 1/255, at most RHO (0 when a <= 1/255)."""
     return np.minimum(RHO, np.sqrt(2.0 * np.log(np.maximum(255.0 * alpha, 1.0))))
 
 

@@ -1,4 +1,4 @@
-# The same mesh-only scene rendered by Cycles and by RaySplats must agree (issue: "Agreement with Cycles"):
+# The same mesh-only scene rendered by Cycles and by RaySplats must agree:
 # mean absolute difference <= 3 % of the mean pixel value, and no region systematically brighter or darker.
 # Materials: diffuse, glossy metal, mirror, glass; lights: sun, point, area; world colour. Both engines at a
 # high sample count, direct + 4 bounces, 1-pixel box filter, no denoising, no clamping, caustics off in both

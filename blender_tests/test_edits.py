@@ -28,7 +28,7 @@ def affine_gaussians(cloud, a4, planar):
 
     planar=False: the map acts on the whole Gaussian (object transforms): Σ' = A Σ Aᵀ.
     planar=True: the map acts on the polygon (mesh edits, modifiers). The polygon carries the two largest
-    axes, so the in-plane part is A Σp Aᵀ, and the thickness rule of DESIGN §5 adds the third axis along the
+    axes, so the in-plane part is A Σp Aᵀ, and the thickness rule of docs/design.md §5 adds the third axis along the
     new normal: s3' = thickness · sqrt(s1' s2'), thickness = s3 / sqrt(s1 s2) of the original."""
     a = a4[:3, :3]
     centres = cloud["positions"].astype(np.float64) @ a.T + a4[:3, 3]

@@ -9,7 +9,7 @@ import splat_testing as st
 from raysplats import axes
 
 # (file, splats, SH degree) as documented in shared/data/README.md, and how many of the splats have an opacity
-# below 1/255 (invisible: the import skips them, DESIGN §5).
+# below 1/255 (invisible: the import skips them, docs/design.md §5).
 REAL_FILES = [
     ("small_sh3_inria.ply", 9080, 3, 0),
     ("donut_sh0.ply", 45624, 0, 1518),
@@ -90,8 +90,8 @@ class ImportExport(unittest.TestCase):
     def test_untouched_import_and_export_in_the_same_format_is_exact(self):
         # .splat: the file comes back byte for byte (before: rotation bytes re-quantised). .ply and .spz: every value
         # reads back exactly as the source's (their files also hold normals / zstd frames we write our own way),
-        # except SH bands 1-3, which the mesh keeps in each face's frame (DESIGN §5): rotated there and back, they
-        # differ by float rounding (at most 1.5e-8 on small_sh3_inria.ply).
+        # except SH bands 1-3, which the mesh keeps in each face's frame (docs/design.md §5): rotated there and back,
+        # they differ by float rounding (at most 1.5e-8 on small_sh3_inria.ply).
         # .compressed.ply: every value, and every byte after the header (whose comment names the writer).
         for name in ("small.splat", "small_sh3_inria.ply", "donut_sh0.ply", "biker_v4.spz",
                      "guitar_supersplat.compressed.ply"):

@@ -1,7 +1,7 @@
-# Memory per Gaussian of a polygon import (issue 17): the exact layers of the imported mesh (a byte colour attribute,
+# Memory per Gaussian of a polygon import: the exact layers of the imported mesh (a byte colour attribute,
 # 4 bytes a corner; no float colour, no selection layers, no thickness or radius), Polygon Vertices Auto (8 up to 1 M
 # Gaussians, 4 above), and the peak resident memory of a real import (showroom_1.5M.ply, the default settings) against
-# the core's estimate (memory_budget.h) and the issue's target. Each test fails when its cut is reverted.
+# the core's estimate (memory_budget.h) and TARGET_BYTES_PER_GAUSSIAN. Each test fails when its cut is reverted.
 # examples/benchmark_import_memory.py prints the same figures.
 import unittest
 
@@ -13,7 +13,7 @@ from raysplats import blender_compat, gaussian_mesh, io_import, mesh_memory
 
 BIG = "showroom_1.5M.ply"  # 1,495,636 Gaussians, SH degree 0
 SMALL = "donut_sh0.ply"    # 45,624 Gaussians, SH degree 0
-# Peak resident memory of the default import of BIG above Blender before it, per Gaussian: the issue's target. Measured
+# Peak resident memory of the default import of BIG above Blender before it, per Gaussian: the target. Measured
 # with examples/benchmark_import_memory.py: 3.4 about 615 (the mesh, 276, and the copy the operator's undo step keeps,
 # which background mode makes too), 4.5 and 5.0 about 350 (their undo step shares the mesh's arrays).
 TARGET_BYTES_PER_GAUSSIAN = 700

@@ -1,4 +1,4 @@
-# A scene imported in spatial pieces (io_import.add_gaussian_pieces, issue 17): one Gaussian object per piece under
+# A scene imported in spatial pieces (io_import.add_gaussian_pieces): one Gaussian object per piece under
 # one empty that carries the scene's transform. The pieces together are the file (the same Gaussians as a one-object
 # import, exported and rendered alike), each piece is a compact box of space, the empty moves them all, Tab edits them
 # all, Export Selected with only the empty selected writes them all, and a failed import leaves nothing behind.

@@ -1,4 +1,4 @@
-# What an import sets up for Blender's own viewport (issue 12): the material draws its falloff alpha with
+# What an import sets up for Blender's own viewport: the material draws its falloff alpha with
 # stochastic transparency, which needs no sorting (Alpha Hashed on 3.x, Dithered on 4.2+; alpha Blend drew the
 # back of a splat object over its front); EEVEE's viewport samples are raised so that it converges; the 3D views
 # that show the new object colour Solid shading (also Edit Mode's) by the splat colour attribute. All on by

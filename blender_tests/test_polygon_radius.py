@@ -1,4 +1,4 @@
-# The opacity-aware polygon radius (DESIGN §5): each face of an imported scene spans only where its Gaussian is
+# The opacity-aware polygon radius (docs/design.md §5): each face of an imported scene spans only where its Gaussian is
 # visible, rho_i = min(rho, sqrt(2 ln(255 a))), stored in the face attribute gs_radius; Gaussians below 1/255 are not
 # imported and the import says how many. Recovery (export, the render engine) divides by each face's own rho_i, so
 # faces moved by an edit still give back their Gaussians; faces without the attribute use the object's rho.
@@ -54,7 +54,7 @@ class PolygonRadius(unittest.TestCase):
         cloud = visible(st.native().read_splats(st.data_file(DONUT)))
         self.assertEqual(len(mesh.polygons), 45624 - 1518)
         self.assertIn("1,518 Gaussian(s) with opacity below 1/255 (invisible) not imported", warnings)
-        # (Kept in the UV map since issue 17, not in a gs_radius attribute: face_attributes reads it from there.)
+        # (Kept in the UV map, not in a gs_radius attribute: face_attributes reads it from there.)
         self.assertNotIn(gaussian_mesh.ATTR_RADIUS, mesh.attributes)
         radius = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
         expected = mt.visible_radius(cloud["opacities"].astype(np.float64))

@@ -1,4 +1,4 @@
-# Splat tools and Blender operations on splat objects (issue 13): what an export limits itself to, the joined object
+# Splat tools and Blender operations on splat objects: what an export limits itself to, the joined object
 # that stays a splat object, the selection and clean-up tools against counts computed here in numpy from the files'
 # own values, colour adjustments against a numpy colour map, the Gaussian-exact Apply Transform under non-uniform and
 # sheared maps, and the topology-changing modifier warnings.
@@ -90,7 +90,7 @@ class ExportLimit(unittest.TestCase):
         bpy.ops.object.select_all(action="DESELECT")
         self.unicorn.select_set(True)
         self.assertEqual(len(st.export_file("selected.ply", limit_to="SELECTED")["opacities"]), self.unicorn_count)
-        # The README's stable keyword from before Limit to still selects.
+        # The stable keyword from before Limit to (docs/reference.md) still selects.
         self.assertEqual(len(st.export_file("selected_old.ply", use_selection=True)["opacities"]), self.unicorn_count)
         path = st.tmp_file("selected_old.glb")
         self.assertEqual(bpy.ops.export_scene.raysplats_mesh(filepath=path, use_selection=True), {"FINISHED"})
@@ -352,7 +352,7 @@ class ExactApplyTransform(unittest.TestCase):
         self.assert_same_gaussians(st.export_file("all_applied.ply"), reference, 2e-4)
 
     def test_blenders_own_apply_scale_changes_thickness(self):
-        # What the exact operator exists for (issue 13's measurement): Blender's Apply Scale moves the corners only.
+        # What the exact operator exists for: Blender's Apply Scale moves the corners only.
         self.obj.scale = (1.0, 2.0, 1.0)
         bpy.context.view_layer.update()
         reference = st.export_file("scaled.ply")
@@ -466,7 +466,7 @@ class MirroredColour(unittest.TestCase):
         expected = st.sh_colors(self.reference["sh"], self.directions * self.mirror)
         copied = st.sh_colors(self.reference["sh"], self.directions)
         actual = st.sh_colors(sh, self.directions)
-        # An unmirrored copy is off by about 0.07 here (issue 13); the reflection is exact to float precision.
+        # An unmirrored copy is off by about 0.07 here; the reflection is exact to float precision.
         self.assertGreater(np.abs(copied - expected).max(), 0.03)
         np.testing.assert_allclose(actual, expected, atol=2e-5)
 

@@ -1,4 +1,4 @@
-# Benchmark of a scene too big to edit whole (issue 17): showroom_1.5M.ply tiled 3 x 3 (13.5 M Gaussians, the size
+# Benchmark of a scene too big to edit whole: showroom_1.5M.ply tiled 3 x 3 (13.5 M Gaussians, the size
 # of a drone capture) is imported with the default settings (Automatic: compact points beyond 3 M Gaussians),
 # rendered with F12 at 1920 x 1080 with one sample, a region of it is edited as polygons and merged back, and the
 # scene is exported to .ply. Prints each stage's time, the resident memory it added (now - before) and Blender's peak

@@ -1,4 +1,4 @@
-# Where the memory of an import goes (issue 17): Blender's resident memory empty (add-on registered, core loaded), its
+# Where the memory of an import goes: Blender's resident memory empty (add-on registered, core loaded), its
 # peak during an import with the default settings and after the depsgraph has evaluated the object (the evaluated
 # copy), the bytes per Gaussian above the empty Blender, every layer of the imported mesh (vertices, edges, corners,
 # faces, each attribute), and the .blend's size (saved uncompressed, Blender's default) against the splat file's.

@@ -1,7 +1,7 @@
 # Material Preview against the render: how close EEVEE's drawing of an imported splat scene (the import
-# material's falloff alpha, DESIGN §5) comes to the RaySplats render of the same scene from the same camera, with
-# the material's stochastic transparency (Alpha Hashed / Dithered, today's import) and with alpha Blend (the
-# import before issue 12). Prints a table of PSNR (dB) per scene, view and mode.
+# material's falloff alpha, docs/design.md §5) comes to the RaySplats render of the same scene from the same camera,
+# with the material's stochastic transparency (Alpha Hashed / Dithered, today's import) and with alpha Blend (what
+# imports used before Alpha Hashed). Prints a table of PSNR (dB) per scene, view and mode.
 #
 # EEVEE needs an OpenGL context, which Blender in --background mode may not have: run Blender with a window, on a
 # virtual display when there is no screen:
@@ -110,7 +110,7 @@ def render_rgba(scene, engine, path, samples):
         scene.raysplats.samples = samples
         scene.raysplats.seed = 1
         # EEVEE composites its hashed transparency in linear light: the reference is the linear blend, not the
-        # splat viewers' display blend (the default since issue 15).
+        # splat viewers' display blend (the default).
         scene.raysplats.blend_space = "LINEAR"
         # EEVEE draws the flat polygons, not the viewers' projected footprints: the reference is the traced image.
         scene.raysplats.camera_ray_splatting = False

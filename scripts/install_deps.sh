@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs every Debian package RaySplats needs to build, run and test (DESIGN §3).
+# Installs every Debian package RaySplats needs to build, run and test (docs/design.md §3).
 # Idempotent and quick when everything is already there: apt is only called for missing packages.
 set -euo pipefail
 

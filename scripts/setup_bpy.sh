@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Makes (once, cached) a venv with an official Blender build as a Python module (PyPI `bpy`) so that the
-# Blender tests also run on the Blender versions users have (DESIGN §9). Prints the venv's python on
+# Blender tests also run on the Blender versions users have (docs/design.md §9). Prints the venv's python on
 # success. When PyPI cannot be reached or has no such bpy, it says so on stderr, prints nothing and exits 0,
 # so that the other Blender tests still run.
 #   scripts/setup_bpy.sh VERSION [venv-dir]      VERSION: 4.2, 4.5, 5.0 (a Blender major.minor)

@@ -1,5 +1,5 @@
 # RaySplats: editable, ray-traced 3D Gaussian Splatting scenes in Blender.
-# The add-on is glue (DESIGN §2): it moves Blender data in bulk to the native core (raysplats._native) and
+# The add-on is glue (docs/design.md §2): it moves Blender data in bulk to the native core (raysplats._native) and
 # back. Module import order is fixed (utils -> properties -> io -> engine) so that "Reload Scripts" works.
 
 bl_info = {

@@ -18,8 +18,9 @@ UP_AXIS_ITEMS = (
 # Import choices besides the explicit axes:
 # - DETECT (the default): the scene's own up, found by the core from its Gaussians (raysplats/up_axis.h: the
 #   supporting plane, ground or floor or table, drawn by flat Gaussians). Which way is up is a property of the scene,
-#   not of its file format (DESIGN §4): of the real test scenes, a drone-style interior and an object made in Blender
-#   are Z up although their files follow COLMAP's -Y habit, and imported on their side with the format's convention.
+#   not of its file format (docs/design.md §4): of the real test scenes, a drone-style interior and an object made in
+#   Blender are Z up although their files follow COLMAP's -Y habit, and imported on their side with the format's
+#   convention.
 #   Where the data shows no clear supporting plane, the format's convention is kept; formats whose specification
 #   fixes up (glTF: +Y) are taken at their word.
 # - AUTO: the format's convention, from the core's format table (splat_formats()' up_axis): -Y for every format, as

@@ -1,4 +1,4 @@
-# Every fact about how the Blender versions RaySplats supports (3.4 to 5.x, DESIGN §9) differ, in one place.
+# Every fact about how the Blender versions RaySplats supports (3.4 to 5.x, docs/design.md §9) differ, in one place.
 # Each name says what differs; its definition says since which version, and the comment why it matters here.
 # Callers import these names and never test bpy.app.version or probe the API themselves, so that supporting a new
 # Blender means reading this one file.
@@ -69,8 +69,8 @@ FACE_SIZE_OFFSET = None if MESH_TOPOLOGY_IN_INT32_ARRAYS else 4  # to MPoly.totl
 MESH_INDEX_DTYPE = np.int32 if MESH_TOPOLOGY_IN_INT32_ARRAYS else np.uint32
 
 # Writing those arrays: from 3.5 (positions) and 3.6 (edge and corner indices) Mesh.vertices/edges/loops.foreach_set
-# sets them element by element through RNA on 4.x and 5.x (0.4-0.5 s per 6 M elements on 4.5, 2.5 s of a 3.4 s import
-# of showroom_1.5M), and the attribute holding the array takes the same values in bulk (4-6 ms). Where the attribute
+# sets them element by element through RNA on 4.x and 5.x (most of an import's time), and the attribute holding the
+# array takes the same values in bulk, about a hundred times faster (docs/benchmarks.md, Import). Where the attribute
 # exists, gaussian_mesh.fill_mesh writes it: (collection, property) -> (attribute name, its value key).
 MESH_ARRAY_ATTRIBUTES = {("vertices", "co"): ("position", "vector"),
                          ("edges", "vertices"): (".edge_verts", "value"),
@@ -131,7 +131,7 @@ ATTRIBUTE_VALUE_KEY = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR"
 # --- Edit Mode meshes (BMesh) ------------------------------------------------------------------------------------------
 
 # In Edit Mode a mesh lives in a BMesh; reading its positions through bpy makes Blender convert the whole BMesh into a
-# Mesh (about 1.6 us per octagon splat). edit_mesh_read.py reads them in place instead, at these byte offsets
+# Mesh (in time proportional to the whole mesh). mesh_fast_read.py reads them in place instead, at these byte offsets
 # (source/blender/bmesh/bmesh_class.h, .hh from 4.0: the same from 2.8 to 5.x), each checked on the BMesh at hand
 # against bmesh's Python API before its first read; any mismatch falls back to the conversion.
 BMESH_LAYOUT = {

@@ -1,4 +1,4 @@
-# Compact splat objects (issue 17): a whole scene as one point per Gaussian carrying its attributes, in Blender 5.3's
+# Compact splat objects: a whole scene as one point per Gaussian carrying its attributes, in Blender 5.3's
 # own splat layout (native_splats.py: a Gaussian-splat point cloud where Blender has one, else mesh vertices), for
 # scenes too big to hold as editable polygons. About 56 bytes per Gaussian in Blender (degree 0) against ~1 KB as
 # octagons.
@@ -41,9 +41,8 @@ REMOVED_MARK = -1
 # made from; 0 for faces that came from elsewhere (joined objects).
 REGION_SLOT = "raysplats_region_slot"
 # Polygon vertices of a region (Edit Selected as Polygons' default). Blender's Edit Mode entry costs per polygon
-# corner (a vertex, an edge and a corner each, with their layers): measured on a 200 k region of 13.5 M Gaussians,
-# about 400 bytes and 0.4 us of CPU (4.5) to 0.6 us (3.4) per corner; K = 4 enters in 0.3-0.5 s of CPU adding
-# 0.3 GB, K = 8 in 0.7-0.9 s adding 0.6 GB (examples/benchmark_big_scene.py; README, "Big scenes").
+# corner (a vertex, an edge and a corner each, with their layers), about 400 bytes a corner, so K = 4 enters in half
+# the time and memory of K = 8 (examples/benchmark_big_scene.py; docs/benchmarks.md, Editing big scenes).
 REGION_VERTICES_PER_POLYGON = 4
 CLOUD_KEYS = ("positions", "rotations", "scales", "opacities", "sh")
 

@@ -2,7 +2,7 @@
 # that cannot work, the native module not built) is reported with its own message, which names the file, setting or
 # object. Anything else is a bug in RaySplats: the user is told so in one short line and the full traceback goes to
 # the console (stderr), where a bug report can copy it from. Nothing is re-raised into Blender: an operator cancels,
-# the render engine stops with an error; Blender keeps running (DESIGN §2).
+# the render engine stops with an error; Blender keeps running (docs/design.md §2).
 import functools
 import traceback
 

@@ -1,6 +1,6 @@
 # Which objects an export writes: glTF's "Limit to" choice (io_scene_gltf2's Selected / Visible / Renderable /
 # Active Collection) as one drop-down shared by the splat and the mesh exporters. Visible is the default: an export
-# writes what the user sees, and an object the user hid is never exported unless asked for (issue 13).
+# writes what the user sees, and an object the user hid is never exported unless asked for.
 
 from . import gaussian_mesh
 
@@ -54,5 +54,5 @@ def describe(limit_to):
 
 def limit_of(limit_to, use_selection=False):
     """The Limit to of an export operator: `use_selection`, the keyword of scripts written before Limit to (and the
-    README's stable interface), still means the selection."""
+    stable interface, docs/reference.md), still means the selection."""
     return "SELECTED" if use_selection else limit_to

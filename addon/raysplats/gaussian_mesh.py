@@ -1,4 +1,4 @@
-# The Blender side of the polygon bridge (DESIGN §5): the attribute schema of a Gaussian mesh; writes the native
+# The Blender side of the polygon bridge (docs/design.md §5): the attribute schema of a Gaussian mesh; writes the native
 # core's polygon arrays into a Mesh with bulk foreach_set, and reads any (evaluated) mesh back into arrays for recovery
 # (through mesh_fast_read.py, which knows how to read Blender's arrays fast).
 import numpy as np
@@ -12,13 +12,13 @@ from .mesh_fast_read import ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribut
 # Face-domain attributes of a Gaussian mesh. SH coefficient k (k = 0 is the DC term) lives in "gs_sh_<k>";
 # coefficients k >= 1 are in the face's local frame.
 ATTR_OPACITY = "gs_opacity"
-# Written by imports before the layer was dropped (issue 17); recovery now takes each face's thickness from its rest
+# Written by imports of earlier versions, which stored it; recovery now takes each face's thickness from its rest
 # scales where the attribute is missing.
 ATTR_THICKNESS = "gs_thickness"
 # rho_i, the Mahalanobis radius of the face's polygon: min(rho, sqrt(2 ln(255 a))), where the Gaussian is visible
-# (DESIGN §5). Recovery divides by it; faces without it (faces the user adds: 0) use the object's rho. Imports since
-# issue 17 do not write it: the UV map holds it (the corner at angle 0 is (rho_i, 0)), and face_attributes reads it
-# from there (older files with the attribute keep using it).
+# (docs/design.md §5). Recovery divides by it; faces without it (faces the user adds: 0) use the object's rho. Imports
+# no longer write it: the UV map holds it (the corner at angle 0 is (rho_i, 0)), and face_attributes reads
+# it from there (older files with the attribute keep using it).
 ATTR_RADIUS = "gs_radius"
 ATTR_SH_PREFIX = "gs_sh_"
 # The Gaussian each face was made from; lets unedited faces export bit-exactly (see polygon_bridge.h).
@@ -104,10 +104,10 @@ def fill_mesh(mesh, polygons):
         mesh.polygons.foreach_set("loop_total", face_corner_count)
     del face_corner_count
     # Nothing is selected: Blender's add() selects every new element, in bool layers of their own that Edit Mode
-    # would start from (all selected); without them nothing is (issue 17: 1 byte per vertex, edge and face).
+    # would start from (all selected); without them nothing is, and each saves 1 byte per vertex, edge and face.
     remove_selection_layers(mesh)
 
-    # (No gs_thickness: recovery computes each face's thickness from its rest scales, DESIGN §5.)
+    # (No gs_thickness: recovery computes each face's thickness from its rest scales, docs/design.md §5.)
     polygons.pop("thickness", None)
     _write_attribute(mesh, ATTR_OPACITY, "FLOAT", "FACE", take("opacity"))
     polygons.pop("polygon_radius")  # (no gs_radius: the UV map holds it, see ATTR_RADIUS)
@@ -241,6 +241,6 @@ def recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifie
     if obj.mode == "EDIT":
         obj.update_from_editmode()
     # The evaluated object's data is the mesh after modifiers, shape keys and deformers; reading it directly
-    # avoids the full copy that to_mesh() makes (2.4 s for 1.5 M splats).
+    # avoids the full copy that to_mesh() makes.
     mesh = obj.evaluated_get(depsgraph).data if apply_modifiers else obj.data
     return recover_mesh_gaussians(core, mesh, obj.raysplats, mesh_to_output)

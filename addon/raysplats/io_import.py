@@ -84,14 +84,14 @@ REPRESENTATION_ITEMS = (
                                  "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
 )
 # Above this many Gaussians AUTO imports compact points: Blender's Edit Mode costs about 5 KB per polygon Gaussian
-# (issue 17: 9.3 GB and 13.8 s to enter it on 1.5 M), so bigger scenes are edited a region at a time.
+# (docs/benchmarks.md, Import), so bigger scenes are edited a region at a time.
 AUTO_POLYGON_LIMIT = 3_000_000
 
 
-# Polygon Vertices "Auto" (0): octagons up to this many Gaussians, quadrilaterals above, which halves the mesh (issue
-# 17, showroom_1.5M.ply on Blender 4.5, before the other cuts: the import's peak 565 bytes a Gaussian above Blender as
-# quadrilaterals, 992 as octagons; examples/benchmark_import_memory.py --k). Renders and exports do not depend on K
-# (each Gaussian is recovered by moments); Solid view and Material Preview show the splats as four-cornered patches.
+# Polygon Vertices "Auto" (0): octagons up to this many Gaussians, quadrilaterals above, which halves the mesh and
+# nearly halves the import's peak memory (examples/benchmark_import_memory.py --k; docs/benchmarks.md). Renders and
+# exports do not depend on K (each Gaussian is recovered by moments); Solid view and Material Preview show the splats as
+# four-cornered patches.
 AUTO_OCTAGON_LIMIT = 1_000_000
 
 
@@ -101,14 +101,13 @@ def auto_vertices_per_polygon(count):
 
 
 # Objects "Auto": a scene whose polygons have more than AUTO_SINGLE_OBJECT_VERTICES vertices is split into spatially
-# compact pieces of at most AUTO_PIECE_VERTICES vertices, one object each, under one empty (issue 17, edits at
-# interactive speed). In Rendered view and Material Preview Blender re-evaluates an edited object whole after each
+# compact pieces of at most AUTO_PIECE_VERTICES vertices, one object each, under one empty, so that edits run at
+# interactive speed. In Rendered view and Material Preview Blender re-evaluates an edited object whole after each
 # edit: it converts the edit mesh to a mesh to add the original coordinates those shadings request
 # (DerivedMesh.cc, editbmesh_calc_modifiers: "avoid the need to convert to mesh data just to add an orco layer"),
-# about 0.15 s per million vertices here, twice per edit. Measured on showroom_1.5M.ply (6 M vertices) moving 100
-# splats in Edit Mode in Rendered view, Blender 3.4: one object 2.3-3.2 s to the first image; 16 pieces of 375 k
-# vertices 0.05 s for the move itself (blender_tests/gui/viewport_rendered.py prints it). biker_v4.spz (152 k
-# octagons, 1.2 M vertices) stays one object: 0.46 s.
+# twice per edit, in time proportional to the object's vertices (blender_tests/gui/viewport_rendered.py prints an
+# edit's time; docs/benchmarks.md, Editing big scenes, has the figures). biker_v4.spz (152 k octagons, 1.2 M
+# vertices) stays one object.
 AUTO_SINGLE_OBJECT_VERTICES = 1_500_000
 AUTO_PIECE_VERTICES = 400_000
 

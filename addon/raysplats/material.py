@@ -1,5 +1,5 @@
 # The material imported Gaussian objects get: unlit splat colour with the exact Gaussian falloff
-# alpha = a * exp(-|uv|^2 / 2), uv being the corner's local polygon coordinates (DESIGN §5), so Material
+# alpha = a * exp(-|uv|^2 / 2), uv being the corner's local polygon coordinates (docs/design.md §5), so Material
 # Preview (EEVEE) shows the splats as they are.
 import bpy
 

@@ -1,4 +1,4 @@
-# The one reader of Blender materials (DESIGN §6): what the renderer (engine/materials.py) and every exporter
+# The one reader of Blender materials (docs/design.md §6): what the renderer (engine/materials.py) and every exporter
 # (io_mesh_export.py) take a material to be. It follows the active Material Output's Surface link to the shader that
 # is really connected: the Principled BSDF and the simple BSDF nodes, with a base-colour image texture when Base
 # Color (or a Diffuse BSDF's Color) is linked from an Image Texture node. Nodes not connected to the output do not

@@ -43,16 +43,16 @@ def read_attribute(mesh, name, data_type, domain, count, reuse=None):
     return out.reshape((count, width)) if width > 1 else out
 
 
-# Reading a Gaussian mesh back was most of the viewport's update after an edit on 4.x. On showroom_1.5M (12 M vertices
-# and corners, warm buffers), Blender 4.2: vertices.foreach_get("co") 0.22 s, loops.foreach_get("vertex_index")
-# 0.57 s; the same values through the attributes "position" and ".corner_vert" 0.011 s and 0.004 s. Blender 3.4:
-# vertices.foreach_get("co") 0.036 s, loops.foreach_get("vertex_index") 0.033 s (into uint32, see
-# blender_compat.MESH_INDEX_DTYPE; 0.47 s into int32), a copy straight out of Blender's loop array 0.005 s. So: the
-# attributes where they exist (4.x), else the loop array in place (3.x), else foreach_get.
+# Reading a Gaussian mesh back was most of the viewport's update after an edit on 4.x, where
+# vertices.foreach_get("co") and loops.foreach_get("vertex_index") are 20-140 times slower than the same values
+# through the attributes "position" and ".corner_vert"; on 3.4 a copy straight out of Blender's loop array is several
+# times faster than foreach_get (which needs uint32, see blender_compat.MESH_INDEX_DTYPE). docs/benchmarks.md,
+# Blender-side reads, has the figures. So: the attributes where they exist (4.x), else the loop array in place (3.x),
+# else foreach_get.
 #
 # The byte layouts read in place (blender_compat.LOOP_STRIDE, FACE_STRIDE and their offsets) are checked on the mesh
-# at hand before every read; after an edit of showroom_1.5M, polygons.foreach_get("loop_total") took 0.04 s (3.4) and
-# 0.065 s (4.2), a copy out of the face array in place a few milliseconds.
+# at hand before every read; a copy out of the face array in place is about ten times faster than
+# polygons.foreach_get("loop_total").
 _loop_layout_failed = False  # the check failed once: this Blender lays its loops out otherwise, do not look again
 _face_layout_failed = False
 _SPOT_CHECKS = 8  # elements whose value in place is compared with RNA's: the first, the last and 6 evenly in between
@@ -160,11 +160,11 @@ def read_face_corners(mesh, sizes=None, starts=None):
     return "foreach_get"
 
 
-# Why evaluated_mesh (see blender_compat.EVALUATED_MESH_COPIES_ON_READ), measured on showroom_1.5M after an edit,
-# Blender 3.4: the first read of the evaluated mesh's positions 0.09-0.37 s (46,700 page faults: a fresh 192 MB copy),
-# corners 0.08-0.16 s, face sizes 0.05-0.12 s; from the datablock, which owns its arrays, 0.04 s each with foreach_get.
-# From 3.6 on a read through RNA copies the arrays whichever mesh it is read from (4.2: positions 0.07-0.09 s from the
-# evaluated mesh, its datablock or the original alike), so there is nothing to gain there.
+# Why evaluated_mesh (see blender_compat.EVALUATED_MESH_COPIES_ON_READ): on Blender 3.4 the first read of an evaluated
+# mesh after an edit makes a fresh copy of each array (page faults and all), while the datablock owns its arrays and
+# reads them as they are. From 3.6 on a read through RNA copies the arrays whichever mesh it is read from (the
+# evaluated mesh, its datablock or the original alike), so there is nothing to gain there. docs/benchmarks.md,
+# Blender-side reads, has the figures.
 # Parent types that only place their child. Parenting with deformation (Blender's PARSKEL, which RNA calls "ARMATURE"
 # or "LATTICE") adds a virtual deform modifier, as shape keys do (BKE_modifiers_get_virtual_modifierlist).
 _PLACING_PARENT_TYPES = {"OBJECT", "VERTEX", "VERTEX_3", "BONE"}
@@ -233,12 +233,12 @@ def write_bytes_in_place(elements, values):
 
 # --- Edit Mode --------------------------------------------------------------------------------------------------------
 # In Edit Mode the evaluated mesh wraps the edit BMesh; reading its arrays through bpy, or obj.to_mesh(), makes Blender
-# convert the whole BMesh into a Mesh: about 1.6 us per octagon splat, 2.4 s on showroom_1.5M after every move of a few
-# splats. The native core walks the BMesh's vertex and face tables in place instead (read_edit_mesh_positions, at the
-# byte offsets blender_compat.BMESH_LAYOUT gives), once its layout has been checked here on the BMesh at hand against
-# bmesh's own Python API. Only the positions are read: the topology must be the one the caller had (checked corner by
-# corner), and face attributes are taken as unchanged (Edit Mode's tools move vertices; an attribute set in Edit Mode
-# reaches the render when Edit Mode is left).
+# convert the whole BMesh into a Mesh, in time proportional to the whole mesh after every move of a few splats
+# (docs/benchmarks.md). The native core walks the BMesh's vertex and face tables in place instead
+# (read_edit_mesh_positions, at the byte offsets blender_compat.BMESH_LAYOUT gives), once its layout has been checked
+# here on the BMesh at hand against bmesh's own Python API. Only the positions are read: the topology must be the one
+# the caller had (checked corner by corner), and face attributes are taken as unchanged (Edit Mode's tools move
+# vertices; an attribute set in Edit Mode reaches the render when Edit Mode is left).
 _bmesh_layout_failed = False  # a check failed once: this Blender lays its BMesh out otherwise; do not look again
 _bmesh_checked = set()  # addresses of the BMeshes whose layout was checked (a new one each time Edit Mode is entered)
 

@@ -1,8 +1,8 @@
-# Modifiers that a Gaussian object's polygons do not survive exactly. The polygon bridge (DESIGN §5) is exact under
-# any affine map and any deformation that moves a face's corners together (armature, lattice, mirror, array), but a
-# modifier that changes the faces themselves (re-meshing, subdividing, merging, splitting) hands recovery polygons
+# Modifiers that a Gaussian object's polygons do not survive exactly. The polygon bridge (docs/design.md §5) is exact
+# under any affine map and any deformation that moves a face's corners together (armature, lattice, mirror, array), but
+# a modifier that changes the faces themselves (re-meshing, subdividing, merging, splitting) hands recovery polygons
 # that were never splats: their Gaussians are re-fitted from distorted shapes. That is sometimes wanted, never silent:
-# the render and the exporters report it once per modifier, by name (issue 13).
+# the render and the exporters report it once per modifier, by name.
 
 # Blender modifier types (Modifier.type) that change a mesh's faces rather than move its corners.
 TOPOLOGY_CHANGING_MODIFIERS = {

@@ -1,4 +1,4 @@
-# What runs when Blender's data changes, for splat objects (issue 13): after every depsgraph update, a joined mesh that
+# What runs when Blender's data changes, for splat objects: after every depsgraph update, a joined mesh that
 # is mostly splats becomes a splat object again, changed colour adjustments reach the viewport's colour attribute,
 # and Blender's own Apply Transform is noticed; after a file is loaded, the message-bus subscriptions are renewed.
 import bpy

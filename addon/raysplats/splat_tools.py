@@ -1,4 +1,4 @@
-# Splat-object upkeep (issue 13): reducing the SH degree, showing the colour adjustments in the viewport's colour
+# Splat-object upkeep: reducing the SH degree, showing the colour adjustments in the viewport's colour
 # attribute, and keeping a joined mesh a splat object (or marking one by hand) with its settings read back from its
 # data. Per-Gaussian work runs in the core (color_adjustment.h). Selection is in splat_selection.py, the exact Apply
 # Transform in splat_transform.py, the handlers that call these on Blender's changes in splat_handlers.py, the panels

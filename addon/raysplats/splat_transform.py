@@ -1,4 +1,4 @@
-# Blender's Apply Transform kept exact for splat objects (issue 13). Applying a non-uniform scale or a shear to the
+# Blender's Apply Transform kept exact for splat objects. Applying a non-uniform scale or a shear to the
 # polygon corners alone changes each Gaussian's thickness; the exact Apply here maps the full Gaussians (covariance,
 # thickness, view-dependent colour) and rebuilds their polygons. Blender's own, which scripts can still call, is noticed
 # and reported (notice_corner_only_apply, called by splat_handlers.py). Shown by splat_ui.py (Ctrl+A).
@@ -12,9 +12,10 @@ from .splat_selection import target_objects
 from .splat_tools import refresh_corner_colors
 
 # Blender's own Apply Transform (object.transform_apply) moves only a splat object's polygon corners: exact for
-# rotations and uniform scales, but a non-uniform scale or a shear changes the Gaussians' thickness (issue 13: median
-# x1.53 for a (1, 2, 1) scale). It cannot be replaced for scripts, so where it happened it is recorded on the object and
-# named in the render and export reports (modifier_checks.fidelity_warnings); Ctrl+A offers the exact one.
+# rotations and uniform scales, but a non-uniform scale or a shear changes the Gaussians' thickness (median
+# x1.53 for a (1, 2, 1) scale on a real scene). It cannot be replaced for scripts, so where it happened it is recorded
+# on the object and named in the render and export reports (modifier_checks.fidelity_warnings); Ctrl+A offers the exact
+# one.
 CORNER_ONLY_APPLY_PROPERTY = "raysplats_corner_only_apply"
 # Gaussian objects' placement when last seen (original object pointer -> (world matrix, a few vertices in world space)).
 _placements = {}

@@ -1,4 +1,4 @@
-# Where a splat object's settings and tools are shown (issue 13): the Object Properties panel "Gaussian Splats"
+# Where a splat object's settings and tools are shown: the Object Properties panel "Gaussian Splats"
 # (Object.raysplats), the 3D view's sidebar tab "Splats", and the entries in Edit Mode's Select and Mesh menus and in
 # Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
 import bpy

@@ -1,9 +1,9 @@
-# GUI test (needs a display for EEVEE; ctest runs it under xvfb-run), issue 12: Blender's own viewport shows an
+# GUI test (needs a display for EEVEE; ctest runs it under xvfb-run): Blender's own viewport shows an
 # imported splat scene as it will render.
 # 1. Material Preview: EEVEE's render of a real scene (the import material, Alpha Hashed / Dithered) against the
 #    RaySplats render from the same camera, from the front and from the back, must reach MIN_PSNR_SPLATS; the
-#    material in alpha Blend mode (the import before issue 12) must fall short of it from the front, where Blend
-#    draws the back of the model over its face. Measured with examples/material_preview_agreement.py's code.
+#    material in alpha Blend mode (what imports used before Alpha Hashed) must fall short of it from the front, where
+#    Blend draws the back of the model over its face. Measured with examples/material_preview_agreement.py's code.
 # 2. Solid shading, in Object and in Edit Mode, shows the splat colours: the 3D view's pixels on the object are
 #    coloured (mean chroma above MIN_SOLID_CHROMA), not Solid's default grey.
 #   xvfb-run -a -s "-screen 0 1280x800x24" blender --factory-startup -noaudio --python material_preview_agreement.py \

@@ -1,7 +1,8 @@
 // Benchmark of the polygon bridge on a real scene: Gaussians -> polygons (import) and polygons -> Gaussians
 // (recovery, every render and export), both for unedited faces (bit-exact path) and for edited ones
 // (moments). Prints the time of each stage and the rate in splats per second, and what the opacity-aware radius
-// did (DESIGN §5): Gaussians skipped below 1/255, faces with rho_i < rho, the mean rho_i, the mesh's vertex memory.
+// did (docs/design.md §5): Gaussians skipped below 1/255, faces with rho_i < rho, the mean rho_i, the mesh's vertex
+// memory.
 //   bench_bridge [file.ply] [K]
 #include <algorithm>
 #include <chrono>

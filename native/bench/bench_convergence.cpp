@@ -1,4 +1,4 @@
-// Convergence benchmark (issue 15, faster convergence): samples and time to reach a noise level, with fixed
+// Convergence benchmark: samples and time to reach a noise level, with fixed
 // samples per pixel and with adaptive sampling, on showroom_1.5M plus a ground plane and a sun, sorted mode.
 //
 //   bench_convergence [scene.ply] [--width 960 --height 540] [--reference-samples 512] [--max-samples 256]

@@ -1,4 +1,4 @@
-// Splat file read / write throughput on the real scenes in shared/data (DESIGN §8).
+// Splat file read / write throughput on the real scenes in shared/data (docs/design.md §8).
 // For each file: read time (best of 3), MB/s of the file size, splats/s; then write time and MB/s of the
 // written file for its own format (into the system temp folder; the file is removed afterwards); read-only formats
 // (SOG) are only read. A second table: the up-axis estimate (raysplats/up_axis.h) and a KHR_gaussian_splatting .glb

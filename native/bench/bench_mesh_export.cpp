@@ -1,4 +1,4 @@
-// Mesh export benchmark (DESIGN §7, §8): splat file -> splat patches -> GLB, Draco GLB, PLY (and OBJ with
+// Mesh export benchmark (docs/design.md §7, §8): splat file -> splat patches -> GLB, Draco GLB, PLY (and OBJ with
 // --obj), with times, output sizes and the Draco size as a fraction of the plain GLB.
 //   bench_mesh_export [file] [output-dir] [--obj] [--only glb|draco|ply|obj] [--level N]
 // Default file: showroom_1.5M.ply in RAYSPLATS_DATA_DIR; default output dir: /tmp.

@@ -1,5 +1,5 @@
-// The contract every reader's fuzz target checks (native/README.md, fuzz/): on any bytes, a reader either throws
-// FileFormatError whose message names the file, or returns a cloud that passes the cloud's own checks
+// The contract every reader's fuzz target checks (docs/architecture.md, native/fuzz/): on any bytes, a reader either
+// throws FileFormatError whose message names the file, or returns a cloud that passes the cloud's own checks
 // (GaussianCloud::check_consistent, check_values; unit quaternions, opacities in [0, 1], the repairs finalize_cloud
 // promises), and the header probe (probe_splat_file's, on the same bytes) agrees with it on the splat count where
 // both succeed. Anything else (another exception type, a crash, a sanitizer report) is a finding: it aborts, and

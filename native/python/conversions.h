@@ -54,7 +54,7 @@ py::array_t<T> to_numpy(std::vector<T, Allocator>&& values, std::vector<py::ssiz
 // SH degree (0..3) from the coefficients per channel (1, 4, 9, 16) of array `name`.
 int sh_degree_from_coefficients(py::ssize_t coefficients, const char* name);
 
-// Gaussians from the arrays of DESIGN §4: positions (N,3), rotations (N,4) wxyz, scales (N,3) linear,
+// Gaussians from the arrays of docs/design.md §4: positions (N,3), rotations (N,4) wxyz, scales (N,3) linear,
 // opacities (N) linear, sh (N,coeffs,3). The values are copied (the cloud outlives the arrays).
 GaussianCloud cloud_from_arrays(const FloatArray& positions, const FloatArray& rotations, const FloatArray& scales,
                                 const FloatArray& opacities, const FloatArray& sh);

@@ -261,7 +261,7 @@ void register_splat_tools(py::module_& m);
 void register_edit_mesh(py::module_& m);
 
 PYBIND11_MODULE(_native, m) {
-    m.doc() = "RaySplats native core: splat file I/O, the polygon bridge and mesh export (see DESIGN.md).";
+    m.doc() = "RaySplats native core: splat file I/O, the polygon bridge and mesh export (see docs/design.md).";
 
     auto error = py::register_exception<raysplats::Error>(m, "Error", PyExc_RuntimeError);
     py::register_exception<raysplats::FileFormatError>(m, "FileFormatError", error.ptr());
@@ -288,7 +288,7 @@ PYBIND11_MODULE(_native, m) {
     m.def("gaussians_to_polygons", &gaussians_to_polygons, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
           "sh"_a, "vertices_per_polygon"_a = 8, "radius"_a = 3.0f,
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "
-          "face attributes (the Gaussian's rest values, opacity, rho_i) and corner colours/UVs (DESIGN §5); "
+          "face attributes (the Gaussian's rest values, opacity, rho_i) and corner colours/UVs (docs/design.md §5); "
           "invisible_skipped counts the Gaussians with opacity below 1/255, which get no face.");
     m.def("split_into_spatial_pieces", [](const FloatArray& positions, std::size_t max_per_piece) {
               const py::ssize_t n = require_shape(positions, "positions", {kAnySize, 3});
@@ -311,10 +311,10 @@ PYBIND11_MODULE(_native, m) {
           "thickness"_a = py::none(), "polygon_radius"_a = py::none(), "sh_local"_a = py::none(),
           "rest_centers"_a = py::none(), "rest_rotations"_a = py::none(), "rest_scales"_a = py::none(),
           "reflected"_a = py::none(), "faces"_a = py::none(),
-          "Recovers one Gaussian per polygon by moments (DESIGN §5), in the space of mesh_to_output, dividing by each "
-          "face's polygon_radius (rho_i; `radius` where it is missing or 0); faces marked `reflected` (their corners "
-          "reversed by a reflection) get their local SH reflected; with `faces`, only those (row j is face faces[j], "
-          "bit-identical to a full recovery's).");
+          "Recovers one Gaussian per polygon by moments (docs/design.md §5), in the space of mesh_to_output, dividing "
+          "by each face's polygon_radius (rho_i; `radius` where it is missing or 0); faces marked `reflected` (their "
+          "corners reversed by a reflection) get their local SH reflected; with `faces`, only those (row j is face "
+          "faces[j], bit-identical to a full recovery's).");
     m.def("faces_with_reversed_uvs", &faces_with_reversed_uvs, "corner_uvs"_a, "face_corner_start"_a,
           "face_corner_count"_a,
           "Per face 1.0 where its corner UVs wind clockwise (a reflection reversed its corners), else 0.0.");

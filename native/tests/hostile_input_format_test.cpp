@@ -1,4 +1,4 @@
-// Hostile splat files (issue 16): each is refused with an error that says what is wrong, and refusing it costs
+// Hostile splat files: each is refused with an error that says what is wrong, and refusing it costs
 // little memory. Each file is read in a fresh process (this test binary re-run on one hidden test), because peak
 // memory (VmHWM) is per process and a forked copy of a multi-threaded (TBB) process is not safe to use. The child
 // also runs under an address-space limit, so that a regression (a reader allocating what the header claims)

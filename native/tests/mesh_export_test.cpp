@@ -1,4 +1,4 @@
-// Mesh export: splat patch geometry (DESIGN §7), parts, triangle meshes and polygons, and the written files
+// Mesh export: splat patch geometry (docs/design.md §7), parts, triangle meshes and polygons, and the written files
 // read back independently (tinygltf's loader, Draco's decoder, raw PLY/OBJ parsing), plus write errors.
 #include <gtest/gtest.h>
 
@@ -100,8 +100,8 @@ TEST(SplatPatches, OneGaussianIsAFanWithFalloffAlphaUvsAndNormal) {
     }
 }
 
-// A faint Gaussian's patch spans only where it is visible (DESIGN §5, rho_i = sqrt(2 ln(255 a)) < rho): its rim at
-// rho_i with alpha 1/255, its UVs on the circle of radius 0.5 rho_i / rho, so that x = rho (2 uv - 1) is the local
+// A faint Gaussian's patch spans only where it is visible (docs/design.md §5, rho_i = sqrt(2 ln(255 a)) < rho): its rim
+// at rho_i with alpha 1/255, its UVs on the circle of radius 0.5 rho_i / rho, so that x = rho (2 uv - 1) is the local
 // coordinate on every patch (one alpha texture serves all). A Gaussian below 1/255 gets a patch of zero size.
 TEST(SplatPatches, FaintGaussiansHavePatchesOfTheirVisibleRadius) {
     GaussianCloud cloud = one_gaussian();

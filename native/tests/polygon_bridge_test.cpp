@@ -36,7 +36,7 @@ GaussianCloud random_cloud(std::size_t n, int degree, unsigned seed) {
     return c;
 }
 
-// rho_i of DESIGN §5, written out independently of the bridge: a·exp(-r²/2) = 1/255 at r = sqrt(2 ln(255 a)).
+// rho_i of docs/design.md §5, written out independently of the bridge: a·exp(-r²/2) = 1/255 at r = sqrt(2 ln(255 a)).
 double expected_visible_radius(double opacity, double rho) {
     return opacity * 255.0 > 1.0 ? std::min(rho, std::sqrt(2.0 * std::log(255.0 * opacity))) : 0.0;
 }
@@ -159,7 +159,7 @@ TEST(PolygonBridge, RecoveryIsExactForEveryK) {
     }
 }
 
-// Imports store no thickness (issue 17): recovery takes each face's from its rest scales, so an edited face (here every
+// Imports store no thickness: recovery takes each face's from its rest scales, so an edited face (here every
 // face, moved) comes back exactly as with the thickness stored; without rest scales either, the polygon is flat.
 TEST(PolygonBridge, RecoveryWithoutThicknessTakesItFromTheRestScales) {
     GaussianCloud c = random_cloud(100, 0, 77);
@@ -201,7 +201,7 @@ TEST(PolygonBridge, PolygonRadiusComesBackFromTheUvsExactly) {
     }
 }
 
-// The core property of DESIGN §5: an affine image of the polygon is the polygon of the affinely transformed
+// The core property of docs/design.md §5: an affine image of the polygon is the polygon of the affinely transformed
 // Gaussian, whatever the face's own radius rho_i. Applied to the mesh vertices (as a lattice or an edit would),
 // including reflections; opacities down to 0.01 give radii rho_i from 1.6 to rho.
 TEST(PolygonBridge, RecoveryIsExactUnderAffineMapsOfTheVerticesWithPerFaceRadii) {

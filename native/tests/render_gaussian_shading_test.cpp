@@ -91,7 +91,8 @@ constexpr double kUniformAlbedo = 0.5;
 
 // L = rho / pi * S * cos(theta) (Lambert) for a sun at theta = 0, 30, 60 and 80 degrees from the patch's normal, on
 // both sides of the patch (two-sided), and 0 when the sun is on the side the camera does not see. The composited
-// albedo is (1 - T) rho with T <= 1e-3; tolerance 2 % relative (the issue's), and the law itself to 0.5 %.
+// albedo is (1 - T) rho with T <= 1e-3; tolerance 2 % relative (what a lit splat surface was required to meet), and the
+// law itself to 0.5 %.
 TEST(RenderGaussianShading, LitPatchFollowsLambertsCosineLaw) {
     const GaussianCloud floor = splat_floor(3.0f, 0.0f, 0.35f);
     Scene scene;

@@ -133,7 +133,7 @@ struct RefQuad {
 };
 
 // `display`: the Gaussians' sRGB colours are composited as they are, D = sum T_i a_i c_i, and the quad behind
-// joins in display space: linear(D + T srgb(E)) (DESIGN §4); else linear colours are composited, D + T E.
+// joins in display space: linear(D + T srgb(E)) (docs/design.md §4); else linear colours are composited, D + T E.
 std::array<double, 4> reference_pixel(const GaussianCloud& cloud, bool flat, const std::vector<RefQuad>& quads,
                                       const CameraRay& ray, double threshold, bool display = false) {
     const double o[3] = {ray.origin[0], ray.origin[1], ray.origin[2]};

@@ -82,7 +82,7 @@ struct RealScene {
     const char* up;  // nullptr: no supporting plane in the data, undecided
 };
 
-// Ground truth by looking at each scene (notes of issue 16): biker and unicorn stand -Y up (COLMAP), donut (a
+// Ground truth by looking at each scene: biker and unicorn stand -Y up (COLMAP), donut (a
 // Blender-made object) and showroom (an interior, floor plan in x y) are Z up; the two small checkpoints of a
 // 7000-iteration training are too sparse to show a plane.
 class UpAxisRealScenes : public ::testing::TestWithParam<RealScene> {};

@@ -128,7 +128,7 @@ TEST(SplatFormatTable, ExtensionsLeadToTheirFormat) {
             EXPECT_EQ(splat_format_from_extension(std::string("scene") + e), f.format) << e;
         }
         EXPECT_STREQ(splat_format_name(f.format), f.name);
-        // Every reader converts to the core's RDF (DESIGN §4): the up axis is the scene's, not the format's.
+        // Every reader converts to the core's RDF (docs/design.md §4): the up axis is the scene's, not the format's.
         EXPECT_EQ(std::string(f.up_axis), "-Y") << f.name;
     }
     EXPECT_EQ(extensions, (std::set<std::string>{".ply", ".splat", ".spz", ".glb", ".gltf", ".compressed.ply", ".sog",

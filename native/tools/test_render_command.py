@@ -57,7 +57,7 @@ class RenderCommandVocabulary(unittest.TestCase):
         self.assertIn("unknown option --spp", run.stderr)
 
     def test_compositing_and_gaussian_mode_options_by_name_in_any_case(self):
-        # The issue asked for --compositing sorted|stochastic and a flat|volumetric mode: both are the settings
+        # The command line takes --compositing sorted|stochastic and a flat|volumetric mode: both are the settings
         # table's names (--compositing, --gaussian-mode), accepted in any case on the command line.
         scene = {"camera": CAMERA, "render": SMALL}
         default, image_default = render(scene)

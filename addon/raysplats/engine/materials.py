@@ -1,5 +1,5 @@
 # Blender materials -> indices in the native RenderScene, each converted once, by the add-on's one material reader
-# (material_reader.py, DESIGN §6), which the mesh exporter uses too.
+# (material_reader.py, docs/design.md §6), which the mesh exporter uses too.
 from ..material_reader import ImageCache, read_material
 
 

@@ -64,10 +64,9 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                                                      "scene's lights")),
         description="How splats' colours are produced (objects can override it in their Gaussian Splats panel)")
     # On by default: splatted, an unedited scene shows what its viewer shows (62-80 dB against the EWA rasterizer, traced
-    # 26-36 dB), and a sample costs less than a traced sorted one in every view measured but the farthest: showroom_1.5M
-    # from inside at 1000 x 650, 8 samples, 1.87 s against 6.70 s traced; seen whole from 30 times its size away
-    # (blender_gui.viewport_rendered_showroom's F12 camera), 16 samples, 1.24 s against 0.60 s (README, Camera Rays as
-    # Splats, has the figures).
+    # 26-36 dB), and a sample costs less than a traced sorted one in every view measured but the farthest (a whole big
+    # scene a few dozen pixels wide, as blender_gui.viewport_rendered_showroom's F12 camera sees showroom_1.5M);
+    # docs/benchmarks.md, Rendering, has the figures.
     camera_ray_splatting: BoolProperty(
         name="Camera Rays as Splats", default=True,
         description="Draw the splats that camera rays see as splat viewers draw them (each Gaussian's projected "

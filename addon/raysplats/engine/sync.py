@@ -201,7 +201,7 @@ class SceneSync:
             if source is not None:
                 return source
             # Else (the first read, a change of topology, modifiers, shape keys): the evaluated mesh wraps the edit
-            # BMesh without filling its arrays; to_mesh() fills a copy (about 1.6 us per octagon splat).
+            # BMesh without filling its arrays; to_mesh() fills a copy of the whole mesh.
             try:
                 return read(obj.to_mesh())
             finally:
@@ -237,7 +237,7 @@ class SceneSync:
             self.sources[uid] = source
             if uid not in self.spare_sources:
                 # The arrays the first edit reads into, touched now: fresh ones would cost that edit their page
-                # faults (about 0.5 s for 1.5 M splats); here, while the scene is built, about 0.1 s.
+                # faults, which cost less here, while the scene is built (docs/benchmarks.md).
                 self.spare_sources[uid] = source.copy()
         else:
             self.sources.pop(uid, None)

@@ -18,9 +18,8 @@ POLL_SECONDS = 0.05  # how often the timer looks for a newer image (a flag and a
 PREVIEW_DIVISOR = 4  # the first image of a view: one sample at a quarter of the resolution
 # The viewport render leaves one core to Blender's UI thread (and its drawing, in software GL on machines without a
 # GPU), which would otherwise compete with every render thread, and its own thread runs below normal priority.
-# blender_gui.viewport_rendered under Xvfb on 2 shared cores (load ~7 from other work), biker_v4: all threads at
-# normal priority let the UI timer tick 10 times in 1.8 s of refining (longest gap 397 ms, against 216 ms for a
-# plain redraw); one thread below normal, 129 ticks in 3.3 s (longest gap 274 ms, plain redraw 245 ms).
+# Under blender_gui.viewport_rendered on 2 shared cores, all threads at normal priority let the UI timer tick several
+# times less often than one thread fewer below normal priority (docs/benchmarks.md, Viewport threads).
 RENDER_THREADS = max(1, (os.cpu_count() or 2) - 1)
 
 # Diagnostics: the newest viewport image (its samples, splats; draws: images drawn so far, time: when the last came)

@@ -1,8 +1,8 @@
-// Colour adjustments of a Gaussian object (issue 13): exposure, brightness, saturation, hue and temperature, applied
+// Colour adjustments of a Gaussian object: exposure, brightness, saturation, hue and temperature, applied
 // to the Gaussians' SH so that the render, the viewport's colour attribute and every export show the same colours.
 //
-// All five are affine maps of the display colour c (DESIGN §4: c(d) = 0.5 + Σ_k Y_k(d) f_k, sRGB display values),
-// so together they are one map c' = M c + b, applied in this order:
+// All five are affine maps of the display colour c (docs/design.md §4: c(d) = 0.5 + Σ_k Y_k(d) f_k, sRGB display
+// values), so together they are one map c' = M c + b, applied in this order:
 //   exposure     c *= 2^exposure                                  (stops)
 //   temperature  c *= (1 + 0.2 t, 1, 1 - 0.2 t)                    (t in [-1, 1]: warmer > 0, cooler < 0)
 //   saturation   c = L c + s (c - L c), L c = Rec. 709 luma on all three channels (s = 1: unchanged, 0: grey)

@@ -1,4 +1,4 @@
-// Errors thrown by the RaySplats core. Native code never aborts or exits (DESIGN §2): every failure is
+// Errors thrown by the RaySplats core. Native code never aborts or exits (docs/design.md §2): every failure is
 // one of these exceptions, which the Python bindings turn into Python exceptions for the add-on.
 #pragma once
 

@@ -1,4 +1,4 @@
-// The Gaussian model of DESIGN §4, as a structure of arrays that crosses the Python boundary without copies.
+// The Gaussian model of docs/design.md §4, as a structure of arrays that crosses the Python boundary without copies.
 #pragma once
 
 #include <cstddef>

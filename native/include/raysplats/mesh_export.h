@@ -1,7 +1,7 @@
-// Mesh export of DESIGN §7: Gaussians as small triangle patches, and ordinary meshes, written as OBJ (+MTL),
+// Mesh export of docs/design.md §7: Gaussians as small triangle patches, and ordinary meshes, written as OBJ (+MTL),
 // PLY (binary, RGBA vertex colours) and glTF 2.0 (.gltf + .bin, or .glb; optionally Draco-compressed).
 //
-// A splat patch is the Gaussian's polygon (DESIGN §5, K rim vertices on the ellipse of Mahalanobis radius
+// A splat patch is the Gaussian's polygon (docs/design.md §5, K rim vertices on the ellipse of Mahalanobis radius
 // rho_i) plus a centre vertex, fan-triangulated from the centre (K triangles, K + 1 vertices):
 //   centre:  position m,                               alpha a,                 uv (0.5, 0.5)
 //   rim k:   m + rho_i (s1 cos θ_k a1 + s2 sin θ_k a2), alpha a·exp(-rho_i²/2),  uv 0.5 + 0.5 (rho_i/rho)(cos θ_k, sin θ_k)
@@ -11,7 +11,7 @@
 // for all patches gets it exactly: at texture coordinate uv every Gaussian is a·exp(-|x|²/2), x = rho (2 uv - 1)
 // (x is the local polygon coordinate Blender's `gs_uv` map holds; the rim of a faint Gaussian lies inside the
 // circle of radius 0.5). Normal: a1 × a2 at every vertex.
-// Colour: the view-independent SH DC term, c = clamp(0.5 + SH_00 · f_dc, 0, 1) (display sRGB, DESIGN §4);
+// Colour: the view-independent SH DC term, c = clamp(0.5 + SH_00 · f_dc, 0, 1) (display sRGB, docs/design.md §4);
 // higher SH bands are not representable in these formats and are left out.
 //
 // Colours are kept linear in memory (as Blender and glTF's COLOR_0 hold them); the OBJ and PLY writers

@@ -1,12 +1,12 @@
-// The editing bridge of DESIGN §5: every Gaussian becomes one flat K-gon in a Blender mesh, and any polygon
+// The editing bridge of docs/design.md §5: every Gaussian becomes one flat K-gon in a Blender mesh, and any polygon
 // the user leaves behind becomes a Gaussian again, by moments.
 //
 //   v_k = m + rho_i (s1 cos θ_k a1 + s2 sin θ_k a2),  θ_k = 2πk/K             (import)
 //   m = (1/K) Σ v_k,  C = (1/K) Σ (v_k - m)(v_k - m)^T = (rho_i²/2)(s1² a1a1^T + s2² a2a2^T)
 //   eigen(C): λ1 >= λ2 >= λ3  ->  s1 = sqrt(2 λ1)/rho_i, s2 = sqrt(2 λ2)/rho_i      (recovery)
 //
-// rho_i is the face's own radius (DESIGN §5, "Opacity-aware radius"): the polygon spans only where the Gaussian is
-// visible, rho_i = min(rho, sqrt(2 ln(255 a_i))), stored per face; Gaussians with a_i < 1/255 get no face.
+// rho_i is the face's own radius (docs/design.md §5, "Opacity-aware radius"): the polygon spans only where the Gaussian
+// is visible, rho_i = min(rho, sqrt(2 ln(255 a_i))), stored per face; Gaussians with a_i < 1/255 get no face.
 // The recovery is exact under any affine map of the polygon (for every rho_i), so object transforms, modifiers,
 // lattices and armatures all move Gaussians correctly. Colour SH are kept in each face's local frame F = [e1, e2, n]
 // (e1: centre -> vertex 0, n: the face normal by winding): SH_local = D(F^T) SH_world on import,
@@ -39,7 +39,7 @@ struct PolygonSettings {
 // below which the reference 3DGS rasteriser skips a Gaussian.
 constexpr double kVisibleOpacity = 1.0 / 255.0;
 
-// rho_i of DESIGN §5: how far (in Mahalanobis radius) a Gaussian of opacity a is visible, at most rho:
+// rho_i of docs/design.md §5: how far (in Mahalanobis radius) a Gaussian of opacity a is visible, at most rho:
 //   a·exp(-r²/2) >= 1/255  <=>  r <= sqrt(2 ln(255 a)),    rho_i = min(rho, sqrt(2 ln(255 a)))
 // computed in double and rounded once to float, so rho_i == rho bit for bit when the cap applies (a >= 0.353 at
 // rho = 3). 0 when nothing is visible: a < 1/255 (no float equals 1/255 exactly), a NaN.
@@ -104,8 +104,8 @@ PolygonMeshView mesh_view(const SplatPolygons& polygons);
 // of polygons made by gaussians_to_polygons.
 struct SplatFaceAttributesView {
     const float* opacity = nullptr;          // F
-    // Null: each face's gaussian_thickness(rest_scales) (0 without rest scales): Blender imports since issue 17 store
-    // no thickness, since it follows from the rest scales every imported face carries.
+    // Null: each face's gaussian_thickness(rest_scales) (0 without rest scales): Blender imports store no
+    // thickness, since it follows from the rest scales every imported face carries.
     const float* thickness = nullptr;        // F
     // rho_i of each face: recovery divides by it. A value that is not a positive finite number (0 is what Blender
     // gives faces the user adds), or no array (files from before per-face radii), means RecoveryOptions' rho.
@@ -166,7 +166,7 @@ std::vector<float> faces_with_reversed_uvs(const PolygonMeshView& mesh, const fl
 
 // rho_i of each face read back from its polygon UVs: gaussians_to_polygons puts the corner at angle 0 at exactly
 // (rho_i, 0), so it is the u of the face's corner whose v is 0 and u positive (bit for bit what was stored); 0, which
-// means RecoveryOptions' rho, where no corner is. Blender imports since issue 17 keep no per-face radius attribute: the
+// means RecoveryOptions' rho, where no corner is. Blender imports keep no per-face radius attribute: the
 // UV map, which the material needs anyway, holds it. Multi-threaded.
 std::vector<float> polygon_radius_from_uvs(const PolygonMeshView& mesh, const float* corner_uvs);
 

@@ -1,8 +1,8 @@
-// Splitting a splat scene into spatially compact pieces of at most a given size (issue 17, edits at interactive
-// speed): a big scene imported as polygons becomes one Blender object per piece, because Blender re-evaluates a whole
-// edited object after every edit in Rendered or Material Preview shading (it converts the edit mesh to add the
-// original coordinates those shadings request, DerivedMesh.cc editbmesh_calc_modifiers), so the cost of moving a
-// few splats follows the size of the object they are in, not of the scene.
+// Splitting a splat scene into spatially compact pieces of at most a given size, so that
+// edits run at interactive speed: a big scene imported as polygons becomes one Blender object per piece, because
+// Blender re-evaluates a whole edited object after every edit in Rendered or Material Preview shading (it converts the
+// edit mesh to add the original coordinates those shadings request, DerivedMesh.cc editbmesh_calc_modifiers), so the
+// cost of moving a few splats follows the size of the object they are in, not of the scene.
 #pragma once
 
 #include <cstddef>

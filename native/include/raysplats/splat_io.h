@@ -1,6 +1,6 @@
 // Reading and writing splat files: INRIA 3DGS .ply, antimatter15 .splat, Niantic .spz, SuperSplat's compressed .ply
-// (DESIGN §4); reading the KHR_gaussian_splatting primitives of glTF files (.glb, .gltf; written by mesh_export.h's
-// glTF writer) and PlayCanvas SOG (.sog bundles and unbundled meta.json folders).
+// (docs/design.md §4); reading the KHR_gaussian_splatting primitives of glTF files (.glb, .gltf; written by
+// mesh_export.h's glTF writer) and PlayCanvas SOG (.sog bundles and unbundled meta.json folders).
 // Every reader throws FileFormatError naming the file (and byte offset) on bad input; writers are atomic
 // (temporary file in the same folder, then rename), so a failed write never replaces a good file.
 #pragma once
@@ -27,7 +27,7 @@ struct SplatFormatInfo {
     const char* description;
     // The up direction of the cloud the reader returns: "-Y" for every format, since the readers convert to the
     // core's COLMAP convention (x right, y down, z forward; SPZ's RUB is rotated on reading and writing). Which
-    // way a scene is up is a property of the scene, not of its file format (DESIGN §4).
+    // way a scene is up is a property of the scene, not of its file format (docs/design.md §4).
     const char* up_axis;
     // True when the format's specification fixes which way is up (glTF: +Y up), so the file's own axes are taken
     // as they are; false when the file only follows a habit of its producers, so the scene's data may tell better

@@ -1,4 +1,4 @@
-// Selecting Gaussians for clean-up (issue 13): by opacity or size range, by colour, floaters far from their
+// Selecting Gaussians for clean-up: by opacity or size range, by colour, floaters far from their
 // neighbours, inside or outside a crop box; and turning a face selection into the vertex and edge selection Blender
 // stores beside it. Every function takes whole arrays (one row per Gaussian, i.e. per face of a splat mesh) and
 // returns a mask of one byte per row (1 = selected). Multi-threaded where the work is more than a pass over memory.

@@ -24,8 +24,9 @@
 
 namespace raysplats {
 
-// Thresholds of UpAxisEstimate::decided, chosen on the real scenes of shared/data (notes of issue 16): decided scenes
-// had margins of 0.48 or more, undecided ones 0.03 (no supporting plane) or a best score of 0.0025 (sparse).
+// Thresholds of UpAxisEstimate::decided, chosen on the real scenes of shared/data (up_axis_test.cpp's ground truth):
+// decided scenes had margins of 0.48 or more, undecided ones 0.03 (no supporting plane) or a best score of 0.0025
+// (sparse).
 constexpr double kUpAxisMinMargin = 0.35;
 constexpr double kUpAxisMinSupport = 0.005;
 

@@ -23,8 +23,8 @@ inline float linear_to_srgb(float c) {
 
 // srgb_to_linear for the renderer's per-pixel conversions (BlendSpace::Display): on [0, 1) by linear interpolation in
 // a table of 4097 values of the exact curve (the interpolation error is at most f'' h^2 / 8 = 3.0 / 4096^2 / 8 =
-// 2.2e-8, below the float resolution of the result near 1), elsewhere srgb_to_linear. About 10x cheaper than the
-// powf it replaces, which cost display-space renders 0.2 us of CPU per pixel sample (bench_render).
+// 2.2e-8, below the float resolution of the result near 1), elsewhere srgb_to_linear. About 10x cheaper than powf,
+// which made display-space renders measurably slower (bench_render; docs/benchmarks.md).
 inline float srgb_to_linear_tabulated(float c) {
     struct Table {
         float v[4097];
@@ -51,7 +51,7 @@ inline float srgb_to_linear_clamped(float c) { return srgb_to_linear(clamp_unit(
 inline float linear_to_srgb_clamped(float c) { return linear_to_srgb(clamp_unit(c)); }
 
 // Display (sRGB) colour channel of a Gaussian's degree-0 SH coefficient f_dc, 0.5 + SH_C0 f_dc (reference 3DGS
-// SH2RGB; DESIGN §4), unclamped, and its inverse.
+// SH2RGB; docs/design.md §4), unclamped, and its inverse.
 inline double sh_dc_to_display(double f_dc) { return 0.5 + kShC0 * f_dc; }
 inline double display_to_sh_dc(double display) { return (display - 0.5) / kShC0; }
 // The same in single precision, as the renderer precomputes degree-0 colours (its images depend on this rounding,
@@ -59,7 +59,7 @@ inline double display_to_sh_dc(double display) { return (display - 0.5) / kShC0;
 inline float sh_dc_to_display_single(float f_dc) { return 0.5f + float(kShC0) * f_dc; }
 
 // Linear colour channel of a Gaussian's degree-0 SH term for mesh colour attributes: the display value clamped to
-// [0, 1] (DESIGN §4) and decoded.
+// [0, 1] (docs/design.md §4) and decoded.
 inline float sh_dc_to_linear_unit(double f_dc) { return srgb_to_linear_clamped(float(sh_dc_to_display(f_dc))); }
 
 // A value in [0, 1] as a byte, rounded (clamped first; NaN gives 0), as 8-bit colours store it.

@@ -65,7 +65,7 @@ Mat3 polygon_frame(const Vec3* v, int count, const Vec3& center) {
     return f;
 }
 
-// Moments recovery of DESIGN §5. The normal is the eigenvector of C's smallest eigenvalue (from the rows of
+// Moments recovery of docs/design.md §5. The normal is the eigenvector of C's smallest eigenvalue (from the rows of
 // C - λ3 I), oriented by the winding; the two in-plane axes come from the exact 2x2 problem in the plane,
 // which stays accurate when λ1 ≈ λ2 (round Gaussians). Returns false for degenerate faces (scales clamped).
 bool recover_by_moments(const Vec3* v, int count, double rho, double thickness, FaceGaussian& g) {
@@ -145,7 +145,7 @@ bool recover_by_moments(const Vec3* v, int count, double rho, double thickness, 
     return ok;
 }
 
-// Applies an affine map x -> A x + t to a Gaussian: m' = A m + t, Σ' = A Σ A^T (DESIGN §5: exact).
+// Applies an affine map x -> A x + t to a Gaussian: m' = A m + t, Σ' = A Σ A^T (docs/design.md §5: exact).
 void transform_gaussian(const Mat3& a, const Vec3& t, bool linear_is_identity, FaceGaussian& g) {
     g.center = a * g.center + t;
     if (linear_is_identity) return;
@@ -443,10 +443,11 @@ GaussianCloud recover_gaussians_from_polygons(const PolygonMeshView& mesh, const
             // Without rest attributes every face is taken as a Gaussian; with them, zero rest scales (the value
             // Blender gives new faces) mark a face the user added.
             const bool is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
-            // The stored thickness, else (imports since issue 17 store none) the one of the face's rest scales.
+            // The stored thickness, else (current imports store none) the one of the face's rest scales.
             const double thickness = is_added ? 0.0
                 : attr.thickness ? double(attr.thickness[f]) : rest_s ? double(gaussian_thickness(rest_s)) : 0.0;
-            // The face's own rho_i (DESIGN §5); the object's rho where the face has none (0: added by the user).
+            // The face's own rho_i (docs/design.md §5); the object's rho where the face has none (0: added by
+            // the user).
             float rho = options.polygon.radius;
             if (attr.polygon_radius && attr.polygon_radius[f] > 0.0f && std::isfinite(attr.polygon_radius[f]))
                 rho = attr.polygon_radius[f];

@@ -1,4 +1,4 @@
-// SuperSplat / PlayCanvas compressed PLY: reader and writer (DESIGN §4; issue 16).
+// SuperSplat / PlayCanvas compressed PLY: reader and writer (docs/design.md §4).
 //
 // The contract, from the three implementations that define it (cited as [engine], [st-read], [st-write]):
 //   [engine]   playcanvas/engine src/scene/gsplat/gsplat-compressed-data.js (the viewer's decoder)

@@ -1,5 +1,5 @@
-// INRIA 3DGS .ply reader and writer (DESIGN §4). A SuperSplat compressed PLY is recognised by its header and read by
-// compressed_ply_format.cpp.
+// INRIA 3DGS .ply reader and writer (docs/design.md §4). A SuperSplat compressed PLY is recognised by its header and
+// read by compressed_ply_format.cpp.
 //
 // Reader: ascii, binary_little_endian and binary_big_endian; properties looked up by name in any order; any
 // PLY scalar type (char/int8, uchar/uint8, short/int16, ushort/uint16, int/int32, uint/uint32,

@@ -36,9 +36,10 @@
 //
 // Axes: none converted. splat-transform's writer bakes its data to "PLY space" before encoding and its reader returns
 // the table in PLY space (write-sog.ts, read-sog.ts: Transform.PLY), so a SOG holds the axes of the .ply it came from,
-// the core's RDF (DESIGN §4), like .ply and .splat. ([spec 1.2] says x right, y up, z back; the tools do not convert.)
+// the core's RDF (docs/design.md §4), like .ply and .splat. ([spec 1.2] says x right, y up, z back; the tools do not
+// convert.)
 //
-// Hostile input (issue 16): every bound below is checked before what it bounds is allocated.
+// Hostile input: every bound below is checked before what it bounds is allocated.
 //   - meta.json at most 1 MiB and 64 levels deep; each number finite; every name a relative path inside the scene.
 //   - a zip member's claimed size at most what its role can need, and at most 1032 times its deflated size (deflate's
 //     largest expansion); stored members as long as their data; the CRC is checked.

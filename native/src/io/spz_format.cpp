@@ -27,7 +27,7 @@
 // Coordinate system: SPZ stores RUB (x right, y up, z back). The reference library packs in RUB and converts on
 // load and save (load-spz.h: PackOptions::from / UnpackOptions::to; its ply_to_spz tool converts the RDF of 3DGS
 // .ply files to RUB), and splat-transform and web viewers read .spz as RUB. The core holds every cloud in the
-// RDF (COLMAP) convention of .ply and .splat (DESIGN §4), so the reader converts RUB -> RDF and the writer
+// RDF (COLMAP) convention of .ply and .splat (docs/design.md §4), so the reader converts RUB -> RDF and the writer
 // RDF -> RUB. Both are the same 180° rotation about x, F = diag(1, -1, -1), its own inverse:
 //   positions   (x, y, z) -> (x, -y, -z)          (exact on the 24-bit fixed point: rounding is symmetric)
 //   rotations   (w, x, y, z) -> (w, x, -y, -z)     = F R F, whose axes are those of F R up to sign (F is diagonal,

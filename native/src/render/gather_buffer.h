@@ -1,4 +1,4 @@
-// The per-ray buffer of the k nearest Gaussian hits of one sorted gathering pass (internal; DESIGN §6).
+// The per-ray buffer of the k nearest Gaussian hits of one sorted gathering pass (internal; docs/design.md §6).
 //
 // Filled by the intersect callback (gaussian_callbacks.cpp) while Embree traverses, in exact (t, key) order,
 // key = geom << 32 | prim; consumed by the segment tracer (gaussian_segment_tracer.cpp), which composites the hits

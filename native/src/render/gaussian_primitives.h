@@ -21,8 +21,8 @@
 namespace raysplats {
 
 constexpr float kGaussianSupportSq = 9.0f;          // Mahalanobis radius 3
-constexpr float kMinAlpha = 1.0f / 255.0f;          // DESIGN §6: hits below this are skipped
-constexpr float kMaxAlpha = 0.99f;                  // DESIGN §6: alpha clamp
+constexpr float kMinAlpha = 1.0f / 255.0f;          // docs/design.md §6: hits below this are skipped
+constexpr float kMaxAlpha = 0.99f;                  // docs/design.md §6: alpha clamp
 
 struct alignas(16) GaussianPrimitive {
     glm::vec3 center;
@@ -43,8 +43,7 @@ static_assert(sizeof(GaussianPrimitive) == 64, "one cache line per Gaussian");
 // group is the union of its Gaussians' boxes; GaussianSet::build_groups keeps groups tight (see there). Each
 // Gaussian keeps its identity: hits carry its chunk-local index (first + lane) as primID. Lanes >= count are
 // padding (zero rows and opacity: never a hit). Derived from GaussianSet::prims, which stays the source of truth.
-// On showroom_1.5M (bench_render, CPU per ray against one Gaussian per primitive): stochastic -20 %, sorted -8 %
-// (flat) and -11 % (volumetric), BVH build 0.66 s -> 0.38 s; images unchanged.
+// Groups make frames and the BVH build faster, with the same images (bench_render; docs/benchmarks.md).
 constexpr int kGroupWidth = 8;
 struct alignas(32) GaussianGroup {
     float center[3][kGroupWidth];  // [axis][lane]

@@ -6,7 +6,7 @@
 // entry i of an axis of n entries sits at i / (n - 1) (roughness and cos clamped to >= 1e-4), linear in between.
 // Each entry averages F * G2 / G1 over 1024 visible normals (Heitz 2018 VNDF sampling of a 2D Hammersley set):
 // the estimator Cycles' precompute uses, with a deterministic point set; the quadrature error is below 1e-3.
-// Built once (about 0.2 s on two cores) by the first call, thread-safe.
+// Built once by the first call, thread-safe.
 #pragma once
 
 namespace raysplats {

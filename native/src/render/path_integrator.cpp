@@ -82,9 +82,10 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     return seg;
 }
 
-// DESIGN (BlendSpace::Display, DESIGN §4): a run of Gaussians along a ray (one segment) is composited in display
-// space as trained, D = sum T_i a_i c_i with display colours c_i, and meets what lies behind it, the linear radiance
-// L_behind (the mesh it ends on, shaded with its lights and bounces, or the world), in that space too:
+// Display blend space (BlendSpace::Display, docs/design.md §4 and §6): a run of Gaussians along a ray (one
+// segment) is composited in display space as trained, D = sum T_i a_i c_i with display colours c_i, and meets what
+// lies behind it, the linear radiance L_behind (the mesh it ends on, shaded with its lights and bounces, or the
+// world), in that space too:
 //     L = linear(D + T * display(L_behind)).
 // So an unedited splat scene looks as in a splat viewer (its background the world's colour), and a mesh seen through
 // haze is tinted as a viewer would tint it. Everything else stays linear light: mesh shading, lights, BSDFs, the

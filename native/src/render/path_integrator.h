@@ -1,6 +1,6 @@
-// The path integrator (internal; DESIGN §6): follows one camera path through Gaussian segments and mesh bounces.
-// Each segment comes from the Gaussian segment tracer; a mesh hit is shaded with next-event estimation whose shadow
-// rays carry Gaussian transmittance x mesh occlusion, and the path goes on by sampling the BSDF.
+// The path integrator (internal; docs/design.md §6): follows one camera path through Gaussian segments and mesh
+// bounces. Each segment comes from the Gaussian segment tracer; a mesh hit is shaded with next-event estimation whose
+// shadow rays carry Gaussian transmittance x mesh occlusion, and the path goes on by sampling the BSDF.
 #pragma once
 
 #include <cstdint>

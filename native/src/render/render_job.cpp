@@ -65,8 +65,8 @@ RenderJob::RenderJob(SharedScene& scene, const Camera& camera, const RenderSetti
             try {
                 // The scene is busy, so nothing else changes it; render() may still build its BVH.
                 // The BVH first, on every core at normal priority: after an edit it is what the first image
-                // waits for (showroom_1.5M, Edit Mode: 17.7 s to the first image with the build in the capped,
-                // lowered render under load). render() then finds it built.
+                // waits for, and built by the capped, lowered render threads under load it took many times longer.
+                // render() then finds it built.
                 {
                     std::lock_guard<std::mutex> lock(scene_.build_mutex_);
                     scene_.scene_.build(settings_.gaussian_mode);

@@ -1,6 +1,6 @@
-// The tile loop of render() (DESIGN §6): sample passes over the image, tiles in parallel within each, camera rays as 4 x 4 packets whose
-// first segments the Gaussian segment tracer traces together (gaussian_segment_tracer.h) and whose paths the path
-// integrator follows one by one (path_integrator.h).
+// The tile loop of render() (docs/design.md §6): sample passes over the image, tiles in parallel within each, camera
+// rays as 4 x 4 packets whose first segments the Gaussian segment tracer traces together (gaussian_segment_tracer.h)
+// and whose paths the path integrator follows one by one (path_integrator.h).
 #include "raysplats/render/renderer.h"
 
 #include <algorithm>
@@ -30,8 +30,8 @@ namespace raysplats {
 namespace {
 
 // RenderSettings::speculative_ends: a camera ray first traverses up to this factor times the end of its
-// neighbours' (previous sample's) segments. bench_render, showroom_1.5M sorted, CPU per ray: 1.0 sent 23 % of the
-// rays on (1.93 us), 1.01 4 % (1.87-1.89 us), 1.02 3 % (1.90 us); 1.05 and more tested more Gaussians per ray.
+// neighbours' (previous sample's) segments. 1.01 gave the least CPU per ray of the margins measured (bench_render,
+// showroom_1.5M sorted; docs/benchmarks.md): at 1.0 many more rays must go on, from 1.05 more Gaussians are tested.
 constexpr float kSpeculativeMargin = 1.01f;
 
 // The end of the camera segment a tile already knows near pixel (x, y) (tile coordinates) of the 4 x 4 packet at
@@ -153,7 +153,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
         film.stats.splat_bytes = splatting->memory_bytes();
     }
     // Not in stochastic mode: a segment ends at a random accepted Gaussian, which its neighbours' do not predict
-    // (showroom_1.5M: 10-16 % of the rays had to go on, and the frame was slower at every margin tried).
+    // (on showroom_1.5M the frame was slower at every margin tried).
     const bool speculate = settings.speculative_ends && settings.compositing == Compositing::Sorted;
     std::atomic<long long> tile_passes_done{0};
     const double tile_passes = double(tile_count) * double(settings.samples);

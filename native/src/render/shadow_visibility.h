@@ -1,5 +1,5 @@
-// Visibility of light samples (internal; DESIGN §6): the product of Gaussian transmittance and mesh occlusion along
-// a shadow ray, so that splats cast soft, semi-transparent shadows on meshes.
+// Visibility of light samples (internal; docs/design.md §6): the product of Gaussian transmittance and mesh occlusion
+// along a shadow ray, so that splats cast soft, semi-transparent shadows on meshes.
 #pragma once
 
 #include <glm/glm.hpp>

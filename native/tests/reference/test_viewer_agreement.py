@@ -1,12 +1,12 @@
-"""The renderer against what splat viewers show (issue 15): the real scenes of ../shared/data under 100 k Gaussians
+"""The renderer against what splat viewers show: the real scenes of ../shared/data under 100 k Gaussians
 rendered by RaySplats (through the built module) and by the independent numpy 3DGS EWA rasterizer
 (ewa_rasterizer.py), from two views each, compared as a display shows them (sRGB, clamped). Volumetric Gaussians in
 the default DISPLAY blend space must reach MIN_PSNR dB on every view; LINEAR blend space (the engine's compositing
-before issue 15) must fall short of it on the hazy unicorn, so the test tells the two apart.
+before Display existed) must fall short of it on the hazy unicorn, so the test tells the two apart.
 
     python3 test_viewer_agreement.py MODULE_DIR DATA_DIR [--table | --attribution [SCENE...]]
 
---table prints PSNR per scene, view, Gaussian mode and blend space (the figures of the issue's note), --attribution
+--table prints PSNR per scene, view, Gaussian mode and blend space (docs/validation.md has them), --attribution
 the split below (slow: ray_reference.py is dense numpy); neither asserts anything. The renderer draws its camera rays
 through the pixel centres with one sample, black world, compositing stopped at T < 1e-4 and Gaussians cut near the
 camera (at 1 % of its distance to the scene), the rasterizer's conventions. It also shares the rasterizer's alpha
@@ -117,7 +117,7 @@ MIN_PSNR = {"small_sh3_inria.ply": 30.0, "donut_sh0.ply": 30.0, "unicorn_sh3_reo
 # Azimuth and elevation (degrees) of the two views around each scene's median, at DISTANCE x its 10-90 % extent.
 VIEWS = {"front": (0.0, 15.0), "side": (120.0, 35.0)}
 # Camera-ray splatting (RenderSettings::camera_ray_splatting) draws camera rays' Gaussians with the rasterizer's model:
-# the issue asks 30 dB on every view; what is left is float rounding and the two stop rules (62-80 dB, docstring), so
+# 30 dB on every view is required of it; what is left is float rounding and the two stop rules (62-80 dB, docstring), so
 # 50 dB holds it to being the same model.
 MIN_PSNR_SPLATTING = 50.0
 DISTANCE = 1.3
@@ -256,7 +256,8 @@ class ViewerAgreement(unittest.TestCase):
         for (name, view, mode, space, _), value in results.items():
             if space == "DISPLAY":
                 self.assertGreaterEqual(value, MIN_PSNR[name], f"{name} {view} {mode}: {value:.2f} dB")
-        # Linear compositing is the grey halo the issue reported: the hazy unicorn falls short by several dB.
+        # Linear compositing is the grey halo of haze and floaters that viewers never show: the hazy unicorn falls short
+        # by several dB.
         for view in VIEWS:
             linear = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "LINEAR", False)]
             display = results[("unicorn_sh3_reordered.ply", view, "VOLUMETRIC", "DISPLAY", False)]
@@ -264,7 +265,7 @@ class ViewerAgreement(unittest.TestCase):
 
     def test_camera_ray_splatting_matches_the_viewer(self):
         # With camera-ray splatting every camera ray draws the Gaussians as the rasterizer does: every view of every
-        # scene, the two that tracing leaves at 26 dB included, agrees to MIN_PSNR_SPLATTING (the issue asks 30 dB; the
+        # scene, the two that tracing leaves at 26 dB included, agrees to MIN_PSNR_SPLATTING (30 dB is required; the
         # figures are 62-80 dB, the docstring's table). Flat mode too (the add-on's default): the footprint is the
         # whole 3D Gaussian's in both modes.
         import _native

@@ -1,4 +1,4 @@
-// Cameras of Blender (DESIGN §6): perspective, orthographic and the panoramic models of Cycles. A camera looks
+// Cameras of Blender (docs/design.md §6): perspective, orthographic and the panoramic models of Cycles. A camera looks
 // down its local -Z axis with +Y up and +X right; `camera_to_world` places it (Blender's matrix_world).
 #pragma once
 

@@ -1,4 +1,4 @@
-// Lights in Blender/Cycles units (DESIGN §6). Point, spot and sun lights are delta lights, reached by
+// Lights in Blender/Cycles units (docs/design.md §6). Point, spot and sun lights are delta lights, reached by
 // next-event estimation only; area lights are also visible to camera and reflection rays (one-sided), and
 // both ways of reaching them are combined by multiple importance sampling (power heuristic), as in Cycles.
 //

@@ -1,4 +1,5 @@
-// A Principled-BSDF-like material (Blender 3.x Principled v1 or 4.x Principled v2 subset) for meshes (DESIGN §6).
+// A Principled-BSDF-like material (Blender 3.x Principled v1 or 4.x Principled v2 subset) for meshes
+// (docs/design.md §6).
 #pragma once
 
 #include <array>

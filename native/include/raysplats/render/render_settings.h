@@ -1,4 +1,4 @@
-// What a render is asked for (DESIGN §6): image size, samples, bounces, how Gaussians are composited, and the
+// What a render is asked for (docs/design.md §6): image size, samples, bounces, how Gaussians are composited, and the
 // names by which every front end sets these (the add-on's settings dict, the JSON tool's "render" object and its
 // command-line options): one table, render_setting_parameters(), so a setting is spelt the same everywhere.
 #pragma once
@@ -15,12 +15,12 @@ enum class Compositing {
     Stochastic,  // one traversal per sample, each candidate accepted with probability alpha, nearest kept
 };
 
-// The colour space in which Gaussian colours along a ray are composited (DESIGN §4). Colours from SH are display
-// (sRGB) values, and scenes are trained, and every splat viewer draws them, by compositing those values as they are
-// (C = sum T_i a_i c_i, then shown as is): Display reproduces that, converting the composite to linear where it meets
-// meshes, lights and the film, so an unedited scene under Blender's Standard view transform looks as in its viewer.
-// Linear composites the decoded (linear) colours, physically additive light; it makes every semi-transparent pixel
-// (haze, floaters, soft edges) brighter than the scene was trained to be (2.8-4.5x on real scenes).
+// The colour space in which Gaussian colours along a ray are composited (docs/design.md §4). Colours from SH are
+// display (sRGB) values, and scenes are trained, and every splat viewer draws them, by compositing those values as they
+// are (C = sum T_i a_i c_i, then shown as is): Display reproduces that, converting the composite to linear where it
+// meets meshes, lights and the film, so an unedited scene under Blender's Standard view transform looks as in its
+// viewer. Linear composites the decoded (linear) colours, physically additive light; it makes every semi-transparent
+// pixel (haze, floaters, soft edges) brighter than the scene was trained to be (2.8-4.5x on real scenes).
 enum class BlendSpace {
     Display,  // as trained and as splat viewers draw (the default)
     Linear,   // linear light
@@ -55,8 +55,8 @@ struct RenderSettings {
     // k of the per-ray k-nearest buffer (1 .. 128). Any k gives the same image; it trades re-traces against
     // culling. The buffer is also cut where the transmittance falls below the threshold. 96 covers the ~34
     // Gaussians an indoor ray composites (showroom_1.5M) with room for the out-of-order arrivals of a traversal, so
-    // rays are rarely re-traced: bench_render, CPU time per ray k = 16 / 32 / 48 / 64 / 96 / 128:
-    // 5.6 / 3.6 / 3.1 / 2.8 / 2.7 / 2.7 us.
+    // rays are rarely re-traced; larger k gained nothing (bench_render; docs/benchmarks.md has the CPU time per ray
+    // for each k).
     int gather_buffer_size = 96;
     // Samples spread around the pixel centre by the pixel filter; when false every sample goes through the centre.
     bool jitter = true;

@@ -1,4 +1,4 @@
-// The renderer (DESIGN §6): tiles in parallel, Gaussians composited in exact depth order (or stochastically),
+// The renderer (docs/design.md §6): tiles in parallel, Gaussians composited in exact depth order (or stochastically),
 // meshes path traced with next-event estimation (MIS with BSDF sampling for area lights, which rays see).
 #pragma once
 

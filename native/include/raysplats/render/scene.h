@@ -1,4 +1,4 @@
-// The scene the renderer traces (DESIGN §6): Gaussian clouds, triangle meshes, materials, lights and the world,
+// The scene the renderer traces (docs/design.md §6): Gaussian clouds, triangle meshes, materials, lights and the world,
 // in one Embree 3 BVH. Meshes are instanced so that the caller's arrays are shared with Embree without copies
 // (Mitsuba's scene_embree.inl pattern); Gaussians are Embree user geometry with the exact ray tests of
 // gaussian_callbacks.cpp.
