@@ -1,4 +1,4 @@
-// Render benchmark on a real scene (DESIGN §8): BVH build, sorted and stochastic frames, rays per second,
+// Render benchmark on a real scene (docs/design.md §8): BVH build, sorted and stochastic frames, rays per second,
 // Gaussian hits per ray, the ratio to Embree's plain closest-hit query on the same proxy geometry (the traversal
 // floor), and frame time against scene size.
 //

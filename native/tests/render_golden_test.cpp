@@ -204,12 +204,12 @@ const GoldenCase kCases[] = {
     {"equirect_stochastic_volumetric", CameraType::Equirectangular, Compositing::Stochastic, GaussianMode::Volumetric},
     {"fisheye_sorted_flat_interactive", CameraType::FisheyeEquisolid, Compositing::Sorted, GaussianMode::Flat, false,
      false, 96, true, 1024},
-    // Relightable splats (issue 15), recorded when they were added.
+    // Relightable splats, recorded when they were added.
     {"perspective_sorted_flat_lit", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, false, false, 96,
      true, 0, GaussianShading::Lit},
     {"perspective_stochastic_volumetric_baked_shadowed", CameraType::Perspective, Compositing::Stochastic,
      GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::BakedShadowed},
-    // Display blend space (issue 15): camera runs combined by the film, mirror and glass reflections of splats
+    // Display blend space: camera runs combined by the film, mirror and glass reflections of splats
     // combined per path, shadowed Gaussians darkened in linear light, a transparent background, stochastic runs.
     {"perspective_sorted_flat_display", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, false, false,
      96, true, 0, GaussianShading::Baked, BlendSpace::Display},

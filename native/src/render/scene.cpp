@@ -1,4 +1,4 @@
-// Embree scene construction (DESIGN §6). Pattern of Embree's minimal tutorial: every geometry is created,
+// Embree scene construction (docs/design.md §6). Pattern of Embree's minimal tutorial: every geometry is created,
 // committed, attached, then released (the scene holds the reference), and the scene committed last.
 #include "raysplats/render/scene.h"
 
@@ -393,9 +393,8 @@ double Scene::build(GaussianMode mode) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Chunks are separate instances whose boxes overlap: on showroom_1.5M (bench_render), chunks of 2^18 cost a
-// frame about 5 % (sorted) and 20 % (stochastic) against one chunk, while an edit rebuilds a 2^18 chunk in about
-// 0.1 s instead of the whole cloud in 0.65 s.
+// Chunks are separate instances whose boxes overlap, so a chunked frame costs somewhat more than one chunk's
+// (docs/benchmarks.md), while an edit rebuilds one 2^18 chunk instead of the whole cloud.
 void Scene::set_interactive(bool interactive, std::uint32_t chunk_size) {
     if (chunk_size == 0) throw InvalidArgument("interactive chunk size must be at least 1");
     if (impl_->interactive != interactive || impl_->interactive_chunk_size != chunk_size) impl_->built = false;
