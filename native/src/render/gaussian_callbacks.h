@@ -36,7 +36,9 @@ struct LaneState {
     float transmittance_threshold = 0.0f;
 };
 
-// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data).
+// The context handed to rtcIntersect1/16 and rtcOccluded1 (the Embree tutorials' way to carry per-ray data). No
+// intersection filter functions are used: the Gaussians' own intersect and occluded callbacks do all the work, and
+// meshes report their closest hit as Embree finds it.
 // A callback finds the state of a ray by the ray's id, never by its position in the packet the callback gets:
 // Embree's rtcIntersect4/8/16 "may change the ray packet size and ray order when calling back into ... user
 // geometry callbacks" (rtcIntersect16's documentation). It does so wherever the CPU has no native 16-wide path

@@ -208,6 +208,7 @@ inline Segment GaussianSegmentTracer::trace_stochastic(const Ray& ray, Sampler& 
     TraceContext ctx(&L, 1, TraceMode::Stochastic);
     RTCRayHit rh;
     init_rayhit(rh, ray, ray.tmin);
+    // rtcIntersect1: one ray, id 0; the nearest accepted Gaussian or mesh comes back as the hit.
     rtcIntersect1(s_.scene, &ctx, &rh);
     consume_stochastic(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u, rh.hit.v,
                        rng, c);
