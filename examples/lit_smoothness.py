@@ -28,18 +28,24 @@ def parse_args():
     parser.add_argument("--scenes", nargs="+", default=["biker_v4.spz", "unicorn_sh3_reordered.ply"])
     parser.add_argument("--resolution", type=int, nargs=2, default=(640, 360))
     parser.add_argument("--samples", type=int, default=64)
+    parser.add_argument("--measure-only", action="store_true",
+                        help="only measure the PNGs an earlier run left in --out-dir")
     return parser.parse_args(argv)
+
+
+def load_rgba(path):
+    image = bpy.data.images.load(path)
+    width, height = image.size
+    pixels = np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1]
+    bpy.data.images.remove(image)
+    return pixels
 
 
 def render_rgba(scene, path):
     """F12 to `path` (16-bit PNG, RGBA); returns the image as float rows top to bottom."""
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(path)
-    width, height = image.size
-    pixels = np.array(image.pixels[:], dtype=np.float32).reshape(height, width, 4)[::-1]
-    bpy.data.images.remove(image)
-    return pixels
+    return load_rgba(path)
 
 
 def median3x3(a):
@@ -64,6 +70,10 @@ def main():
     print(f"lit_smoothness: Embree configuration \"{os.environ.get('RAYSPLATS_EMBREE_CONFIG', '')}\", "
           f"Blender {bpy.app.version_string}")
     for name in args.scenes:
+        stem = os.path.splitext(name)[0]
+        if args.measure_only:
+            report(name, *(load_rgba(os.path.join(args.out_dir, f"lit_smoothness_{stem}_{s}.png")) for s in ("lit", "baked")))
+            continue
         bpy.ops.wm.read_factory_settings(use_empty=True)
         enable_addon()
         from raysplats import cli
@@ -84,27 +94,30 @@ def main():
         world = bpy.data.worlds.new("World")
         world.color = (0.08, 0.09, 0.12)
         scene.world = world
-        stem = os.path.splitext(name)[0]
         images = {}
         for shading in ("LIT", "BAKED"):
             obj.raysplats.gaussian_shading = shading
             t0 = time.perf_counter()
             images[shading] = render_rgba(scene, os.path.join(args.out_dir, f"lit_smoothness_{stem}_{shading.lower()}.png"))
             print(f"lit_smoothness: {name} {shading} rendered in {time.perf_counter() - t0:.1f} s")
-        lit, baked = images["LIT"], images["BAKED"]
-        splat = (lit[..., 3] > 0.5) & (baked[..., 3] > 0.5) & (luminance(baked[..., :3]) > 0.02)
-        ratio = np.where(splat, luminance(lit[..., :3]) / np.maximum(luminance(baked[..., :3]), 1e-6), np.nan)
-        local = median3x3(np.nan_to_num(ratio, nan=0.0))
-        keep = splat & (local > 0)
-        roughness = float(np.median(np.abs(ratio[keep] - local[keep]) / local[keep]))
-        rows = np.arange(lit.shape[0]) % 4
-        alpha = lit[..., 3]
-        band = alpha.mean(axis=1) > 0.05  # rows that cross the subject
-        packet_rows = float(alpha[band & (rows >= 2)].mean() / max(alpha[band & (rows < 2)].mean(), 1e-6))
-        print(f"lit_smoothness: {name}: {int(splat.sum())} splat pixels, Lit/Baked luminance ratio median "
-              f"{float(np.nanmedian(ratio)):.3f}, smoothness median|r - med3x3(r)|/med3x3(r) = {roughness:.4f}, "
-              f"packet rows 2-3 / 0-1 alpha = {packet_rows:.3f}")
+        report(name, images["LIT"], images["BAKED"])
 
+
+def report(name, lit, baked):
+    """Prints the two figures of the header for a Lit and a Baked render (float RGBA rows, top to bottom)."""
+    splat = (lit[..., 3] > 0.5) & (baked[..., 3] > 0.5) & (luminance(baked[..., :3]) > 0.02)
+    ratio = np.where(splat, luminance(lit[..., :3]) / np.maximum(luminance(baked[..., :3]), 1e-6), np.nan)
+    local = median3x3(np.nan_to_num(ratio, nan=0.0))
+    keep = splat & (local > 0)
+    roughness = float(np.median(np.abs(ratio[keep] - local[keep]) / local[keep])) if keep.any() else float("nan")
+    # Packet rows, over the pixels the Baked render covers (its camera rays are splatted, not traced in packets).
+    covered = baked[..., 3] > 0.5
+    lower = (np.arange(lit.shape[0]) % 4 >= 2)[:, None] & covered
+    upper = (np.arange(lit.shape[0]) % 4 < 2)[:, None] & covered
+    packet_rows = float(lit[..., 3][lower].mean() / max(lit[..., 3][upper].mean(), 1e-6))
+    print(f"lit_smoothness: {name}: {int(splat.sum())} splat pixels, Lit/Baked luminance ratio median "
+          f"{float(np.nanmedian(ratio)):.3f}, smoothness median|r - med3x3(r)|/med3x3(r) = {roughness:.4f}, "
+          f"Lit alpha in packet rows 2-3 / rows 0-1 = {packet_rows:.3f}")
 
 if __name__ == "__main__":
     main()
