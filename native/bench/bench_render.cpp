@@ -1,4 +1,4 @@
-// Render benchmark on a real scene (DESIGN §8): BVH build, sorted and stochastic frames, rays per second,
+// Render benchmark on a real scene (docs/design.md §8): BVH build, sorted and stochastic frames, rays per second,
 // Gaussian hits per ray, the ratio to Embree's plain closest-hit query on the same proxy geometry (the traversal
 // floor), and frame time against scene size.
 //
@@ -116,7 +116,9 @@ GaussianCloud subset(const GaussianCloud& c, std::size_t m) {
 // for the same camera rays: the floor under any traversal of this geometry.
 double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, int h, double& build_seconds,
                             double& cpu) {
-    RTCDevice dev = rtcNewDevice(nullptr);
+    const std::string config = default_embree_config();  // the same device as the renderer's
+    RTCDevice dev = rtcNewDevice(config.empty() ? nullptr : config.c_str());
+    if (!dev) throw std::runtime_error("Embree refuses the device configuration \"" + config + "\"");
     RTCScene scene = rtcNewScene(dev);
     RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
     const std::size_t n = c.size();
@@ -167,6 +169,7 @@ double embree_floor_seconds(const GaussianCloud& c, const Camera& cam, int w, in
                 rh.ray.mask = ~0u;
                 rh.ray.flags = 0;
                 rh.ray.time = 0;
+                rh.ray.id = 0;
                 rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
                 rtcIntersect1(scene, &ctx, &rh);
             }
@@ -225,6 +228,11 @@ int main(int argc, char** argv) {
         if (const char* b = std::getenv("RAYSPLATS_BENCH_BLEND"))
             st.blend_space = std::string(b) == "linear" ? BlendSpace::Linear : BlendSpace::Display;
         std::printf("blend space     %s\n", st.blend_space == BlendSpace::Linear ? "linear" : "display");
+        {
+            const EmbreeDeviceInfo dev = Scene().embree_device();
+            std::printf("embree device   config \"%s\" (RAYSPLATS_EMBREE_CONFIG), native packets of 16: %s, of 8: %s\n",
+                        dev.config.c_str(), dev.native_ray16 ? "yes" : "no", dev.native_ray8 ? "yes" : "no");
+        }
         const double rays = double(width) * height;
 
         auto run = [&](const GaussianCloud& c, Compositing comp, GaussianMode mode, double& build, bool print) {

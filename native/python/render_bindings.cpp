@@ -322,7 +322,19 @@ void register_render_bindings(py::module_& m) {
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")
         .def_property_readonly("gaussian_count", [](const RenderScene& s) { return s.shared.scene().gaussian_count(); })
         .def_property_readonly("mesh_count", [](const RenderScene& s) { return s.shared.scene().mesh_count(); })
-        .def_property_readonly("light_count", [](const RenderScene& s) { return s.shared.scene().light_count(); });
+        .def_property_readonly("light_count", [](const RenderScene& s) { return s.shared.scene().light_count(); })
+        .def_property_readonly(
+            "embree_device",
+            [](const RenderScene& s) {
+                const raysplats::EmbreeDeviceInfo d = s.shared.scene().embree_device();
+                py::dict out;
+                out["config"] = d.config;
+                out["native_ray4"] = d.native_ray4;
+                out["native_ray8"] = d.native_ray8;
+                out["native_ray16"] = d.native_ray16;
+                return out;
+            },
+            "The Embree device: its configuration (RAYSPLATS_EMBREE_CONFIG) and its native packet widths");
 
     py::class_<PyRenderJob>(m, "RenderJob", "A render running on a native thread")
         .def(py::init<py::object, const py::dict&, const py::dict&, int, bool>(), "scene"_a, "camera"_a, "settings"_a,

@@ -206,9 +206,9 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
 
     // 3. Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
     // view of a big scene that list holds thousands of splats of a pixel or two, of which the packet's sixteenth of the
-    // tile meets a few percent (showroom_1.5M whole at 640 x 360: 4.7x the traced render's time). Small splats therefore
+    // tile meets a few percent, so splatting such a view cost several times the traced render. Small splats therefore
     // go into lists of the packets' own 4 px tiles; big ones stay in 16 px lists, where they cost 16x fewer entries
-    // (small.splat at 1080p in 4 px tiles only: 42 M entries and a 5.5 s pre-pass). A packet merges its two lists.
+    // (4 px tiles alone multiply a big splat's entries, and the pre-pass with them). A packet merges its two lists.
     std::vector<std::uint8_t> level(splats_.size());
     for (std::size_t i = 0; i < splats_.size(); ++i) level[i] = splats_[i].half_extent <= kFineSplatMaxHalfExtent;
     bin(coarse_, level, 0, cancel);
@@ -255,10 +255,10 @@ void CameraSplatting::bin(TileLists& lists, const std::vector<std::uint8_t>& lev
     // A counting sort by tile that keeps the depth order: the splats in chunks of consecutive ranks, each chunk's
     // count per tile, every chunk's start in every list (the lists' offsets plus the counts of the chunks before it),
     // and each chunk fills its splats in rank order from its starts. No atomics, and no list needs sorting after (a
-    // zoomed-out view of showroom_1.5M puts 8 M entries in a few hundred tiles: atomic counters and a sort per list
-    // took 0.33 s, two thirds of the pre-pass).
+    // zoomed-out view of showroom_1.5M puts 8 M entries in a few hundred tiles, where atomic counters and a sort per
+    // list were most of the pre-pass).
     // A cancel (the viewport stops its jobs on the UI thread before an edit reaches the scene) is seen within this
-    // many splats of a chunk: binning 13.5 M splats takes about a second on one thread.
+    // many splats of a chunk, since binning a scene of ten million splats takes the order of a second on one thread.
     constexpr std::size_t kCancelCheckInterval = 4096;
     const std::size_t chunks = std::clamp<std::size_t>(splats_.size() / 256, 1, 16);
     const std::size_t chunk_size = (splats_.size() + chunks - 1) / chunks;
@@ -434,10 +434,12 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
     for (int l = 0; l < 16 && any_mesh; ++l) {
         const Ray& r = rays[l];
         valid[l] = active[l] ? -1 : 0;
-        set_packet_lane(rh, l, r, r.tmax);
+        if (active[l]) set_packet_lane(rh, l, r, r.tmax);
+        else set_packet_lane_inactive(rh, l);
     }
     if (any_mesh) {
-        TraceContext ctx(lanes, TraceMode::MeshesOnly);
+        // Gaussians are ignored (MeshesOnly); rays come back in the packet's order on every Embree path.
+        TraceContext ctx(lanes, 16, TraceMode::MeshesOnly);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
         rtcIntersect16(valid, s_.scene, &ctx, &rh);
     }

@@ -98,7 +98,7 @@ public:
     static constexpr int kTileSize = 16;      // pixels, as the 3DGS rasterizer's BLOCK_X x BLOCK_Y
     static constexpr int kFineTileSize = 4;   // pixels: one 4 x 4 packet of camera rays
     // Splats whose square's half side is at most this (pixels) go into the fine lists, the others into the coarse.
-    // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 costs up to 12 %.)
+    // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 is slower.)
     static constexpr float kFineSplatMaxHalfExtent = 4.0f;
 
 private:

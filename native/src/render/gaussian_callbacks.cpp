@@ -12,6 +12,8 @@
 namespace raysplats {
 namespace {
 
+// Bounds callback (rtcSetGeometryBoundsFunction): the box of primitive primID, in the geometry's object space. No
+// motion blur, so timeStep is always 0.
 void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
     *args->bounds_o = chunk->group_bounds[args->primID];
@@ -21,16 +23,26 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
 // the ray reaches at a t in [tnear, tfar], and writes t (any sign) and the squared distance of the
 // evaluation point: flat, the ray-plane hit and the distance y0^2 + y1^2 there; volumetric, the maximum response
 // along the ray, i.e. the point nearest to the centre in canonical coordinates.
+//
+// Every function here that holds an S::V is always_inline, down to the callbacks at the end, which carry the
+// policy's target: with AVX2 a __m256 then never crosses a call between code built for different instruction sets
+// (a call would pass it in a register on one side and in memory on the other). flatten alone does not promise that:
+// at -O0 nothing is inlined but always_inline functions. The policy's own members may stay calls: after inlining,
+// their callers are the callbacks, of the same target.
+template <class S>
+__attribute__((always_inline)) inline typename S::V dot3(typename S::V ax, typename S::V ay, typename S::V az,
+                                                         typename S::V bx, typename S::V by, typename S::V bz) {
+    return S::madd(az, bz, S::madd(ay, by, S::mul(ax, bx)));
+}
+
 template <class S, bool Flat>
-inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar,
-                           float* t_out, float* dist2_out) {
+__attribute__((always_inline)) inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o,
+                                                          const glm::vec3& d, float tnear, float tfar, float* t_out,
+                                                          float* dist2_out) {
     using V = typename S::V;
     const V ox = S::set1(o.x), oy = S::set1(o.y), oz = S::set1(o.z);
     const V dx = S::set1(d.x), dy = S::set1(d.y), dz = S::set1(d.z);
     const V zero = S::set1(0.0f), lo = S::set1(tnear), hi = S::set1(tfar);
-    auto dot = [](V ax, V ay, V az, V bx, V by, V bz) {
-        return S::madd(az, bz, S::madd(ay, by, S::mul(ax, bx)));
-    };
     unsigned mask = 0;
     for (int h = 0; h < kGroupWidth; h += S::W) {
         const V px = S::sub(ox, S::load(&g.center[0][h]));
@@ -40,21 +52,21 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
         for (int k = 0; k < 9; ++k) r[k] = S::load(&g.row[k][h]);
         V t, dist2, ok;
         if (Flat) {
-            const V denom = dot(r[6], r[7], r[8], dx, dy, dz);
-            t = S::div(S::neg(dot(r[6], r[7], r[8], px, py, pz)), denom);
+            const V denom = dot3<S>(r[6], r[7], r[8], dx, dy, dz);
+            t = S::div(S::neg(dot3<S>(r[6], r[7], r[8], px, py, pz)), denom);
             const V qx = S::madd(t, dx, px), qy = S::madd(t, dy, py), qz = S::madd(t, dz, pz);
-            const V u = dot(r[0], r[1], r[2], qx, qy, qz), v = dot(r[3], r[4], r[5], qx, qy, qz);
+            const V u = dot3<S>(r[0], r[1], r[2], qx, qy, qz), v = dot3<S>(r[3], r[4], r[5], qx, qy, qz);
             dist2 = S::madd(v, v, S::mul(u, u));
             ok = S::ne(denom, zero);
         } else {
-            const V pu = dot(r[0], r[1], r[2], px, py, pz), pv = dot(r[3], r[4], r[5], px, py, pz),
-                    pw = dot(r[6], r[7], r[8], px, py, pz);
-            const V du = dot(r[0], r[1], r[2], dx, dy, dz), dv = dot(r[3], r[4], r[5], dx, dy, dz),
-                    dw = dot(r[6], r[7], r[8], dx, dy, dz);
-            const V d2 = dot(du, dv, dw, du, dv, dw);
-            t = S::div(S::neg(dot(pu, pv, pw, du, dv, dw)), d2);
+            const V pu = dot3<S>(r[0], r[1], r[2], px, py, pz), pv = dot3<S>(r[3], r[4], r[5], px, py, pz),
+                    pw = dot3<S>(r[6], r[7], r[8], px, py, pz);
+            const V du = dot3<S>(r[0], r[1], r[2], dx, dy, dz), dv = dot3<S>(r[3], r[4], r[5], dx, dy, dz),
+                    dw = dot3<S>(r[6], r[7], r[8], dx, dy, dz);
+            const V d2 = dot3<S>(du, dv, dw, du, dv, dw);
+            t = S::div(S::neg(dot3<S>(pu, pv, pw, du, dv, dw)), d2);
             const V qu = S::madd(t, du, pu), qv = S::madd(t, dv, pv), qw = S::madd(t, dw, pw);
-            dist2 = dot(qu, qv, qw, qu, qv, qw);
+            dist2 = dot3<S>(qu, qv, qw, qu, qv, qw);
             ok = S::ne(d2, zero);
         }
         ok = S::and_(ok, S::le(dist2, S::load(&g.support[h])));
@@ -66,12 +78,18 @@ inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o, const glm
     return mask;
 }
 
-// Intersect callback for rtcIntersect1 and ray packets (any N; the accessors of rtcore_ray.h address lane i).
+// Intersect callback for rtcIntersect1 and ray packets (any N, any order: each ray's state is ctx->lanes[id]).
 // Never reports a hit in Gather mode: it fills the per-ray k-nearest buffer and, once the buffer is full (or
 // saturated), shrinks tfar so that traversal culls everything behind it (a mesh hit that lies behind is dropped
 // and found again by the next re-trace).
+// What it relies on from Embree (rtcSetGeometryIntersectFunction, RTCIntersectFunctionNArguments): `valid[i]` says
+// which of the N rays to test; the rays and hits are read and written through the RTCRayN/RTCHitN accessors of
+// rtcore_ray.h (SOA of width N); a hit is committed by shrinking tfar and writing the hit's ids; primID is the
+// primitive of this geometry; context->instID[0] is the instance being traversed (a chunk's instance in the top
+// scene); the ray arrives in that instance's object space (the cloud's frame, where the groups are), with its
+// direction transformed but not normalised, so t means the same point as in world space.
 template <class S, bool Flat>
-inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
+__attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
     if (ctx->mode == TraceMode::MeshesOnly) return;
     const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
@@ -81,22 +99,21 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
     const unsigned n = args->N;
     RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
     RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
-    // Two passes over the active rays (N <= 16: rtcIntersect1 and rtcIntersect16 only). First every ray is tested
-    // against the group with no data-dependent branch in between, so that the out-of-order core overlaps the rays'
-    // tests (each a long dependency chain through a division); then the rays with candidates are visited. Testing
-    // and visiting one ray at a time serialised the tests behind the visits' unpredictable branches (a packet
-    // callback has 7.3 active rays on average, a ray test 0.53 candidates, stochastic mode). A ray's test
-    // sees the tfar it had on entry either way (only its own hits shrink it): the images are bit-identical.
-    // showroom_1.5M (bench_render, 3 interleaved rounds): stochastic frame 0.541-0.566 -> 0.495-0.496 s
-    // (0.52 -> 0.48 us CPU/ray), sorted 1.947-1.968 -> 1.755-1.766 s (1.88 -> 1.69 us CPU/ray).
+    // Two passes over the active rays (N <= 16: rtcIntersect1 and rtcIntersect16 only, or the packets of 4 or 8
+    // Embree splits them into). First every ray is tested against the group with no data-dependent branch in
+    // between, so that the out-of-order core overlaps the rays' tests (each a long dependency chain through a
+    // division); then the rays with candidates are visited. Testing and visiting one ray at a time serialised the
+    // tests behind the visits' unpredictable branches. A ray's test sees the tfar it had on entry either way (only
+    // its own hits shrink it), so the images are the same.
     alignas(32) float ts[16][kGroupWidth], dist2s[16][kGroupWidth];
     unsigned masks[16];
     std::uint32_t active = 0;
-    for (unsigned i = 0; i < n; ++i) active |= std::uint32_t(args->valid[i] != 0) << i;
+    for (unsigned i = 0; i < n; ++i)
+        active |= std::uint32_t(args->valid[i] != 0 && RTCRayN_id(ray, n, i) < ctx->lane_count) << i;
     std::uint32_t with_candidates = 0;
     for (std::uint32_t a = active; a; a &= a - 1) {
         const unsigned i = unsigned(__builtin_ctz(a));
-        LaneState& L = ctx->lanes[i];
+        LaneState& L = ctx->lanes[RTCRayN_id(ray, n, i)];
         L.candidates += g.count;
         ++L.group_candidates;
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
@@ -106,7 +123,7 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
     }
     for (; with_candidates; with_candidates &= with_candidates - 1) {
         const unsigned i = unsigned(__builtin_ctz(with_candidates));
-        LaneState& L = ctx->lanes[i];
+        LaneState& L = ctx->lanes[RTCRayN_id(ray, n, i)];
         float& tfar = RTCRayN_tfar(ray, n, i);
         // Lane by lane: a hit may shrink tfar, which culls the following lanes.
         for (unsigned mask = masks[i]; mask; mask &= mask - 1) {
@@ -141,33 +158,41 @@ inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
 }
 
 // Occlusion callback: the transmittance of a shadow segment is the product of (1 - alpha) over the Gaussians
-// on it, in any order, so no sorting is needed. Reports occlusion only when it falls below the threshold.
+// on it, in any order, so no sorting is needed. Reports occlusion only when it falls below the threshold, the way
+// Embree's occlusion queries report it: tfar set to -inf. Like the intersect callback it takes any N and finds each
+// ray's state by the ray's id (only rtcOccluded1 calls it today).
 template <class S, bool Flat>
-inline void occluded_groups(const RTCOccludedFunctionNArguments* args) {
+__attribute__((always_inline)) inline void occluded_groups(const RTCOccludedFunctionNArguments* args) {
     auto* ctx = static_cast<TraceContext*>(args->context);
-    if (args->N != 1 || !args->valid[0] || ctx->mode != TraceMode::Transmittance) return;
-    LaneState& L = ctx->lanes[0];
+    if (ctx->mode != TraceMode::Transmittance) return;
     const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
     const GaussianGroup& g = chunk->groups[args->primID];
-    RTCRay* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const glm::vec3 o(ray->org_x, ray->org_y, ray->org_z);
-    const glm::vec3 d(ray->dir_x, ray->dir_y, ray->dir_z);
+    const unsigned n = args->N;
+    RTCRayN* ray = args->ray;
     alignas(32) float ts[kGroupWidth], dist2s[kGroupWidth];
-    for (unsigned mask = test_group<S, Flat>(g, o, d, ray->tnear, ray->tfar, ts, dist2s); mask; mask &= mask - 1) {
-        const int lane = __builtin_ctz(mask);
-        const float alpha = std::min(kMaxAlpha, g.opacity[lane] * std::exp(-0.5f * dist2s[lane]));
-        if (alpha < kMinAlpha) continue;
-        L.transmittance *= 1.0f - alpha;
-        if (L.transmittance <= L.transmittance_threshold) {
-            L.transmittance = 0.0f;
-            ray->tfar = -std::numeric_limits<float>::infinity();
-            return;
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i] || RTCRayN_id(ray, n, i) >= ctx->lane_count) continue;
+        LaneState& L = ctx->lanes[RTCRayN_id(ray, n, i)];
+        float& tfar = RTCRayN_tfar(ray, n, i);
+        const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
+        const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
+        for (unsigned mask = test_group<S, Flat>(g, o, d, RTCRayN_tnear(ray, n, i), tfar, ts, dist2s); mask;
+             mask &= mask - 1) {
+            const int lane = __builtin_ctz(mask);
+            const float alpha = std::min(kMaxAlpha, g.opacity[lane] * std::exp(-0.5f * dist2s[lane]));
+            if (alpha < kMinAlpha) continue;
+            L.transmittance *= 1.0f - alpha;
+            if (L.transmittance <= L.transmittance_threshold) {
+                L.transmittance = 0.0f;
+                tfar = -std::numeric_limits<float>::infinity();
+                break;
+            }
         }
     }
 }
 
-// The callbacks Embree calls, per instruction set and mode (flatten: everything above is inlined with the
-// function's target).
+// The callbacks Embree calls, per instruction set and mode: everything above is inlined into them (always_inline
+// where vectors pass, flatten for the rest) and so built for the function's target.
 template <bool Flat>
 __attribute__((flatten)) void gaussians_intersect_sse(const RTCIntersectFunctionNArguments* args) {
     intersect_groups<Sse, Flat>(args);

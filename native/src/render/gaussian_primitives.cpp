@@ -252,6 +252,8 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
 
 void GaussianSet::update_geometry(GaussianChunk& chunk) const {
     build_groups(chunk);
+    // User geometry: Embree asks the bounds callback for every primitive when the geometry is committed (and the
+    // scene that holds it), so the groups must be final here; the chunk's scene is committed by the caller.
     rtcSetGeometryUserPrimitiveCount(chunk.geometry, unsigned(chunk.groups.size()));
     rtcCommitGeometry(chunk.geometry);
 }

@@ -19,7 +19,7 @@ inline void GaussianSegmentTracer::init_rayhit(RTCRayHit& rh, const Ray& ray, fl
     rh.ray.tfar = ray.tmax;
     rh.ray.time = 0.0f;
     rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
+    rh.ray.id = 0;  // a single-ray query's state is lanes[0] of its TraceContext
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
@@ -152,11 +152,12 @@ inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, co
 // Sorted gathering of a ray with single-ray queries, from the state left by earlier passes.
 inline void GaussianSegmentTracer::trace_sorted_from(Segment& seg, LaneState& L, const Ray& ray, Sampler& rng,
                                                      Counters& c) const {
-    TraceContext ctx(&L, TraceMode::Gather);
+    TraceContext ctx(&L, 1, TraceMode::Gather);
     for (;;) {
         RTCRayHit rh;
         init_rayhit(rh, ray, L.gather.continues() ? L.gather.continuation_t() : ray.tmin);
         L.gather.begin_pass(seg.transmittance);
+        // rtcIntersect1: the callbacks get this one ray (N = 1); tfar and the hit come back in rh.
         rtcIntersect1(s_.scene, &ctx, &rh);
         if (consume_gather(seg, L, ray, ray.tmax, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u,
                            rh.hit.v, rng, c))
@@ -204,9 +205,10 @@ inline Segment GaussianSegmentTracer::trace_stochastic(const Ray& ray, Sampler& 
     Segment seg;
     LaneState L;
     L.seed = rng.next_u32();
-    TraceContext ctx(&L, TraceMode::Stochastic);
+    TraceContext ctx(&L, 1, TraceMode::Stochastic);
     RTCRayHit rh;
     init_rayhit(rh, ray, ray.tmin);
+    // rtcIntersect1: one ray, id 0; the nearest accepted Gaussian or mesh comes back as the hit.
     rtcIntersect1(s_.scene, &ctx, &rh);
     consume_stochastic(seg, L, ray, rh.ray.tfar, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.hit.u, rh.hit.v,
                        rng, c);
@@ -234,10 +236,14 @@ void GaussianSegmentTracer::trace_packet(const Ray* rays, const bool* active, co
         init_lane(lanes[l]);
         if (active[l] && !sorted) lanes[l].seed = rngs[l].next_u32();
         end[l] = std::min(r.tmax, ends[l]);
-        set_packet_lane(rh, l, r, end[l]);
+        if (active[l]) set_packet_lane(rh, l, r, end[l]);
+        else set_packet_lane_inactive(rh, l);
     }
-    TraceContext ctx(lanes, sorted ? TraceMode::Gather : TraceMode::Stochastic);
+    TraceContext ctx(lanes, 16, sorted ? TraceMode::Gather : TraceMode::Stochastic);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    // rtcIntersect16 (any CPU): the rays come back in the packet's order, but the callbacks may see them split into
+    // packets of 4 or 8 and reordered (TraceContext says how they find their state). Inactive lanes are inactive
+    // both in `valid` and as empty segments (set_packet_lane_inactive).
     rtcIntersect16(valid, s_.scene, &ctx, &rh);
     if (!sorted) {
         for (int l = 0; l < 16; ++l)
@@ -255,7 +261,11 @@ void GaussianSegmentTracer::trace_packet(const Ray* rays, const bool* active, co
     while (pending) {
         for (int l = 0; l < 16; ++l) {
             valid[l] = (pending >> l) & 1u ? -1 : 0;
-            if (!valid[l]) continue;
+            if (!valid[l]) {
+                // Finished (or never active): not traced again, whatever the path Embree takes.
+                set_packet_lane_inactive(rh, l);
+                continue;
+            }
             lanes[l].gather.begin_pass(segs[l].transmittance);
             rh.ray.tnear[l] = lanes[l].gather.continuation_t();
             rh.ray.tfar[l] = rays[l].tmax;

@@ -1,4 +1,4 @@
-// The Gaussian segment tracer (internal; DESIGN §6): traces a ray to its closest opaque mesh hit and composites the
+// The Gaussian segment tracer (internal; docs/design.md §6): traces a ray to its closest opaque mesh hit and composites the
 // Gaussians in front of it, either sorted (gathered k at a time in exact (t, id) order by the intersect callback,
 // composited front to back, C += T a_i c_i, T *= 1 - a_i, re-traced from the k-th hit until the segment is done
 // or T < threshold) or stochastic (the nearest Gaussian accepted with probability alpha), for single rays and for

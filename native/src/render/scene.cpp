@@ -1,10 +1,13 @@
-// Embree scene construction (DESIGN §6). Pattern of Embree's minimal tutorial: every geometry is created,
+// Embree scene construction (docs/design.md §6). Pattern of Embree's minimal tutorial: every geometry is created,
 // committed, attached, then released (the scene holds the reference), and the scene committed last.
 #include "raysplats/render/scene.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <iterator>
 #include <string>
 
 #include "gaussian_callbacks.h"
@@ -48,10 +51,55 @@ void Scene::Impl::check_device(const char* during) {
     }
 }
 
-Scene::Scene() : impl_(new Impl) {
-    impl_->device = rtcNewDevice(nullptr);
-    if (!impl_->device) throw Error("cannot create the Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+std::string default_embree_config() {
+    const char* env = std::getenv("RAYSPLATS_EMBREE_CONFIG");
+    return env ? std::string(env) : std::string();
+}
+
+Scene::Scene() : Scene(default_embree_config()) {}
+
+namespace {
+
+// Embree takes an instruction set name it does not know without complaint and runs its SSE2 kernels, so a typo in
+// a test's configuration would quietly test the wrong path: the names of rtcNewDevice's documentation only.
+void check_isa_names(const std::string& config) {
+    static const char* const known[] = {"sse2", "sse4.2", "avx", "avx2", "avx512", "avx512knl", "avx512skx"};
+    for (const char* key : {"isa=", "max_isa="}) {
+        for (std::size_t at = config.find(key); at != std::string::npos; at = config.find(key, at + 1)) {
+            if (at > 0 && config[at - 1] != ',' && config[at - 1] != ' ') continue;  // e.g. "max_isa=" inside "isa="
+            const std::size_t begin = at + std::strlen(key);
+            const std::string name = config.substr(begin, config.find_first_of(", ", begin) - begin);
+            if (std::find(std::begin(known), std::end(known), name) == std::end(known))
+                throw InvalidArgument("Embree configuration \"" + config + "\": unknown instruction set \"" + name +
+                                      "\" (sse2, sse4.2, avx, avx2, avx512)");
+        }
+    }
+}
+
+}  // namespace
+
+Scene::Scene(const std::string& embree_config) : impl_(new Impl) {
+    check_isa_names(embree_config);
+    impl_->embree_config = embree_config;
+    // rtcNewDevice: null and an error code for a configuration it cannot honour (RTC_ERROR_UNSUPPORTED_CPU for an
+    // instruction set the CPU lacks, RTC_ERROR_INVALID_ARGUMENT for a malformed string).
+    impl_->device = rtcNewDevice(embree_config.empty() ? nullptr : embree_config.c_str());
+    if (!impl_->device) {
+        const int code = int(rtcGetDeviceError(nullptr));
+        throw Error("cannot create the Embree device with configuration \"" + embree_config + "\" (Embree error " +
+                    std::to_string(code) + (code == RTC_ERROR_UNSUPPORTED_CPU ? ": this CPU lacks that instruction set" : "") +
+                    "; RAYSPLATS_EMBREE_CONFIG sets it)");
+    }
     rtcSetDeviceErrorFunction(impl_->device, device_error_callback, impl_.get());
+}
+
+EmbreeDeviceInfo Scene::embree_device() const {
+    EmbreeDeviceInfo info;
+    info.config = impl_->embree_config;
+    info.native_ray4 = rtcGetDeviceProperty(impl_->device, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
+    info.native_ray8 = rtcGetDeviceProperty(impl_->device, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0;
+    info.native_ray16 = rtcGetDeviceProperty(impl_->device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) != 0;
+    return info;
 }
 
 Scene::~Scene() {
@@ -110,7 +158,9 @@ void validate_gaussians(const std::string& name, const GaussianCloud& cloud, con
     cloud.check_values(name);
 }
 
-// Instances `sub` in `top` with an object-to-world matrix; returns the instance's geomID.
+// Instances `sub` in `top` with an object-to-world matrix; returns the instance's geomID. Every top-level geometry
+// is such an instance (one level: RTC_MAX_INSTANCE_LEVEL_COUNT is 1 in Debian's Embree), so a hit's instID[0] names
+// the mesh or Gaussian chunk, and the Gaussians' callbacks read it from their context (gaussian_callbacks.cpp).
 unsigned attach_instance(RTCDevice device, RTCScene top, RTCScene sub, const Matrix4& object_to_world) {
     RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst, sub);
@@ -128,7 +178,9 @@ void set_instance_transform(RTCScene top, unsigned id, const Matrix4& object_to_
 }
 
 void set_triangle_buffers(RTCGeometry tri, const MeshRecord& m) {
-    // The caller's arrays go to Embree as shared buffers: no copy (the padded copy only if needed).
+    // The caller's arrays go to Embree as shared buffers: no copy (the padded copy only if needed). Embree's
+    // contract for shared vertex buffers: readable with a 16-byte load at the last vertex, so 4 bytes past its end
+    // (MeshDesc::vertices_padded); the buffers must outlive the geometry (the Scene's lifetime rule).
     rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.vertex_data(), 0,
                                3 * sizeof(float), m.desc.vertex_count);
     rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.desc.indices, 0,
@@ -341,9 +393,8 @@ double Scene::build(GaussianMode mode) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Chunks are separate instances whose boxes overlap: on showroom_1.5M (bench_render), chunks of 2^18 cost a
-// frame about 5 % (sorted) and 20 % (stochastic) against one chunk, while an edit rebuilds a 2^18 chunk in about
-// 0.1 s instead of the whole cloud in 0.65 s.
+// Chunks are separate instances whose boxes overlap, so a chunked frame costs somewhat more than one chunk's
+// (docs/benchmarks.md), while an edit rebuilds one 2^18 chunk instead of the whole cloud.
 void Scene::set_interactive(bool interactive, std::uint32_t chunk_size) {
     if (chunk_size == 0) throw InvalidArgument("interactive chunk size must be at least 1");
     if (impl_->interactive != interactive || impl_->interactive_chunk_size != chunk_size) impl_->built = false;

@@ -37,6 +37,7 @@ struct TopGeometry {
 
 struct Scene::Impl {
     RTCDevice device = nullptr;
+    std::string embree_config;  // what rtcNewDevice was given
     RTCScene scene = nullptr;
     std::string device_error;
 

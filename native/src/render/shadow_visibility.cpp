@@ -10,7 +10,7 @@ namespace raysplats {
 float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dist, bool meshes_only, Counters& c) const {
     LaneState L;
     L.transmittance_threshold = st_.transmittance_threshold;
-    TraceContext ctx(&L, meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance);
+    TraceContext ctx(&L, 1, meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance);
     RTCRay ray;
     ray.org_x = o.x;
     ray.org_y = o.y;
@@ -24,6 +24,8 @@ float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dis
     ray.mask = 0xffffffffu;
     ray.id = 0;
     ray.flags = 0;
+    // rtcOccluded1: a single ray (N = 1 in the callbacks, id 0 = lanes[0]); Embree reports occlusion by setting tfar
+    // to -inf, and so does the Gaussians' occluded callback once the transmittance falls below the threshold.
     rtcOccluded1(s_.scene, &ctx, &ray);
     ++c.traced;
     if (ray.tfar == -kInf) return 0.0f;

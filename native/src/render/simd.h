@@ -9,9 +9,8 @@ namespace raysplats {
 // For the group test: 4 lanes with SSE (the x86-64 baseline; two steps per group) or 8 with AVX2 and
 // FMA, chosen at run time. madd(a, b, c) = a b + c is one fused operation (one rounding) with FMA and a mul and an
 // add with SSE, so the two paths differ in the last bits of t and of the distance (each is deterministic on its
-// machine). FMA made the frames of showroom_1.5M (bench_render, 3 interleaved rounds) 2-4 % faster: stochastic
-// 0.494-0.497 -> 0.480-0.499 s, sorted 1.77-1.79 -> 1.69-1.74 s. (Functions with a target attribute can only be
-// inlined into callers with that target: see the callbacks at the end of gaussian_callbacks.cpp.)
+// machine); FMA makes the frames a little faster (docs/benchmarks.md). (Functions with a target attribute can only
+// be inlined into callers with that target: see the callbacks at the end of gaussian_callbacks.cpp.)
 struct Sse {
     using V = __m128;
     static constexpr int W = 4;
@@ -31,8 +30,9 @@ struct Sse {
     static void store(float* p, V a) { _mm_store_ps(p, a); }
 };
 
-// __m256 passes between these functions by value; all of them are inlined into the AVX2 callbacks, so the ABI
-// note GCC gives (at the end of the including file, hence not scoped) concerns no real call.
+// __m256 passes between these functions by value. Their callers are the AVX2 callbacks, of the same target, once the
+// always_inline helpers of gaussian_callbacks.cpp are inlined into them (at any optimisation level), so the ABI note
+// GCC gives (at the end of the including file, hence not scoped) concerns no call between different targets.
 #pragma GCC diagnostic ignored "-Wpsabi"
 struct Avx2 {
     using V = __m256;

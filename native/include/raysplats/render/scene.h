@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "raysplats/gaussian_cloud.h"
@@ -49,9 +50,27 @@ struct MeshDesc {
     Matrix4 object_to_world;
 };
 
+// The Embree device a Scene traces with. Embree picks its kernels (packet width, ray order in callbacks, the
+// rounding of triangle distances) by the instruction set it runs, so the same scene renders through different code
+// on different CPUs; the tests force the instruction sets users have with `config`.
+struct EmbreeDeviceInfo {
+    std::string config;          // the configuration string given to rtcNewDevice ("" = Embree's defaults)
+    bool native_ray4 = false;    // RTC_DEVICE_PROPERTY_NATIVE_RAY4/8/16_SUPPORTED: packets of that width reach the
+    bool native_ray8 = false;    // callbacks as they were sent; a narrower native width means rtcIntersect16 goes
+    bool native_ray16 = false;   // through Embree's ray stream filter, which splits and reorders the packet
+};
+
+// The configuration a Scene gets when none is given: the environment variable RAYSPLATS_EMBREE_CONFIG (e.g.
+// "isa=sse4.2", "isa=avx2"; Embree's device configuration syntax), or "" for Embree's defaults.
+std::string default_embree_config();
+
 class Scene {
 public:
+    // `embree_config`: rtcNewDevice's configuration string; none = default_embree_config(). Throws Error naming the
+    // configuration when Embree refuses it (an unknown option, an instruction set this CPU lacks).
     Scene();
+    explicit Scene(const std::string& embree_config);
+    EmbreeDeviceInfo embree_device() const;
     ~Scene();
     Scene(const Scene&) = delete;
     Scene& operator=(const Scene&) = delete;
