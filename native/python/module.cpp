@@ -13,6 +13,7 @@
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/gaussian_transform.h"
+#include "raysplats/gltf_contents.h"
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
 #include "raysplats/spatial_pieces.h"
