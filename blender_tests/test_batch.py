@@ -149,6 +149,13 @@ class Batch(unittest.TestCase):
         status, output = run_cli("export", st.tmp_file("no_such_*.ply"), "-o", st.tmp_file("x"), "--format", "glb")
         self.assertEqual(status, 2, output)
         self.assertIn("no file matches", output)
+        # The help lists the formats from the core's table: every ending it reads, and the ones convert writes.
+        status, output = run_cli("--help")
+        self.assertEqual(status, 0, output)
+        from raysplats import native
+        for f in native.core().splat_formats():
+            for ending in f["extensions"]:
+                self.assertIn(ending, output)
 
     def test_works_from_an_installed_addon(self):
         if not bpy.app.binary_path or "python" in os.path.basename(bpy.app.binary_path).lower():

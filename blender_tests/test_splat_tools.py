@@ -438,11 +438,11 @@ class Dialogs(unittest.TestCase):
                          "/a/scene.obj")
         self.assertEqual(io_mesh_export.with_extension("/a/scene.v2", ".ply", io_mesh_export.MESH_EXTENSIONS),
                          "/a/scene.v2.ply")
-        # A two-dot splat extension is replaced whole, both ways.
-        splat_extensions = io_import.splat_extensions()
-        self.assertEqual(io_mesh_export.with_extension("/a/scene.compressed.ply", ".spz", splat_extensions), "/a/scene.spz")
-        self.assertEqual(io_mesh_export.with_extension("/a/scene.ply", ".compressed.ply", splat_extensions),
-                         "/a/scene.compressed.ply")
+        # A two-dot splat extension is replaced whole, both ways (by the core's endings); a read-only one is kept.
+        self.assertEqual(io_import.with_splat_extension("/a/scene.compressed.ply", ".spz"), "/a/scene.spz")
+        self.assertEqual(io_import.with_splat_extension("/a/scene.ply", ".compressed.ply"), "/a/scene.compressed.ply")
+        self.assertEqual(io_import.with_splat_extension("/a/Scene.SPZ", ".ply"), "/a/Scene.ply")
+        self.assertEqual(io_import.with_splat_extension("/a/scene.sog", ".ply"), "/a/scene.sog.ply")
         self.assertEqual(io_import.splat_format_of("/a/S.Compressed.PLY")["name"], "compressed_ply")
         self.assertEqual(io_import.splat_format_of("/a/s.ply")["name"], "ply")
         self.assertEqual(io_mesh_export.mesh_format_of("x.GLTF"), "GLTF")

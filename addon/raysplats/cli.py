@@ -11,8 +11,11 @@
 #   render  INPUTS... -o DIR|FILE.png [--resolution W H] [--samples N]
 #                                          .blend or splat file(s) -> image (RaySplats engine if present, else
 #                                          Cycles CPU); splat files and cameraless scenes get a framing camera
-#   convert SPLATS... -o DIR|FILE --format ply|splat|spz
-#                                          splat file(s) -> splat file(s) (3DGS .ply, .splat, .spz)
+#   convert SPLATS... -o DIR|FILE --format FORMAT
+#                                          splat file(s) -> splat file(s) (the formats the core writes)
+#
+# SPLATS are files of any format the core reads (`--help` lists them and the formats convert writes, from the core's
+# format table).
 #
 # INPUT may be a glob ("scans/*.ply", quoted or expanded by the shell); with several inputs OUTPUT is a folder
 # and each output is named after its input. With no INPUT, the .blend Blender opened is the input. One progress
@@ -45,9 +48,15 @@ def _splat_formats():
     return tuple(f["name"] for f in io_import.splat_formats(writable_only=True))
 
 
-def _splat_extensions():
+def _splat_extensions(writable_only=False):
     from raysplats import io_import
-    return io_import.splat_extensions()
+    return io_import.splat_extensions(writable_only)
+
+
+def _is_splat_file(path):
+    """Whether the name ends in one of the core's splat endings (the core's rule, io_import.splat_format_of)."""
+    from raysplats import io_import
+    return io_import.splat_format_of(path) is not None
 
 
 def _mesh_formats():
@@ -95,7 +104,7 @@ def _parser():
                               "AUTO: by format)")
         return sub
 
-    common(commands.add_parser("import", help="splat files -> .blend"))
+    common(commands.add_parser("import", help=f"splat files ({', '.join(_splat_extensions())}) -> .blend"))
     export = common(commands.add_parser("export", help=".blend or splat files -> OBJ/PLY/glTF/GLB"))
     export.add_argument("--format", choices=_mesh_formats(), help="output format (default: the output file's extension)")
     export.add_argument("--draco", action="store_true", help="Draco-compress glTF/GLB meshes")
@@ -111,8 +120,8 @@ def _parser():
     render = common(commands.add_parser("render", help=".blend or splat files -> PNG"))
     render.add_argument("--resolution", type=int, nargs=2, default=(640, 480), metavar=("W", "H"))
     render.add_argument("--samples", type=int, default=16)
-    convert = commands.add_parser("convert", help="splat files -> splat files")
-    convert.add_argument("inputs", nargs="+", help="splat files or globs")
+    convert = commands.add_parser("convert", help=f"splat files -> splat files ({', '.join(_splat_extensions(True))})")
+    convert.add_argument("inputs", nargs="+", help=f"splat files ({', '.join(_splat_extensions())}) or globs")
     convert.add_argument("-o", "--output", required=True, help="output folder, or a file for a single input")
     convert.add_argument("--format", choices=_splat_formats(), help="output format (default: the output's extension)")
     return parser
@@ -169,7 +178,7 @@ def _open_input(source, args):
         bpy.ops.wm.open_mainfile(filepath=source)
         ensure_addon()
     else:
-        if not source.lower().endswith(_splat_extensions()):
+        if not _is_splat_file(source):
             raise ValueError(f"'{source}': not a .blend or splat file ({', '.join(_splat_extensions())})")
         bpy.ops.wm.read_factory_settings(use_empty=True)
         ensure_addon()
@@ -177,7 +186,7 @@ def _open_input(source, args):
 
 
 def _do_import(source, target, args):
-    if not source.lower().endswith(_splat_extensions()):
+    if not _is_splat_file(source):
         raise ValueError(f"'{source}': not a splat file ({', '.join(_splat_extensions())})")
     bpy.ops.wm.read_factory_settings(use_empty=True)
     ensure_addon()

@@ -1,4 +1,4 @@
-# File > Export > Gaussian Splats (.ply/.splat/.spz/.compressed.ply): Gaussians recovered from the evaluated objects
+# File > Export > Gaussian Splats (the formats the core writes): Gaussians recovered from the evaluated objects
 # (modifiers, object transform and SH rotation applied), written atomically by the native core.
 import os
 
@@ -9,8 +9,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
 from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text,
-                        writable_splat_formats)
-from .io_mesh_export import with_extension
+                        with_splat_extension, writable_splat_formats)
 from .progress import StageProgress
 
 
@@ -119,7 +118,7 @@ def format_extension(format_name):
 
 
 class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
-    """Export Gaussian splat objects, with every edit applied, to a .ply, .splat, .spz or .compressed.ply file"""
+    """Export Gaussian splat objects, with every edit applied, to a splat file (the formats of the Format drop-down)"""
 
     bl_idname = "export_scene.gaussian_splats"
     bl_label = "Export Gaussian Splats"
@@ -163,7 +162,7 @@ class EXPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ExportHelper):
 
     def check(self, context):
         # The extension follows the Format drop-down; True redraws the file browser.
-        filepath = with_extension(self.filepath, format_extension(self.export_format), splat_extensions(True))
+        filepath = with_splat_extension(self.filepath, format_extension(self.export_format))
         changed = filepath != self.filepath
         self.filepath = filepath
         return changed

@@ -1,4 +1,4 @@
-# File > Import > Gaussian Splats (.ply/.splat/.spz/.compressed.ply/.sog/meta.json/.glb/.gltf): one mesh object, one
+# File > Import > Gaussian Splats (the formats the core reads, splat_formats() below): one mesh object, one
 # polygon per Gaussian (a glTF file's other meshes through Blender's own glTF importer, io_gltf.py).
 import os
 
@@ -20,15 +20,17 @@ def splat_formats(writable_only=False):
 
 
 def splat_format_of(filepath, writable_only=False):
-    """The core's entry for the format the file's name ends with (the longest ending that matches: "a.compressed.ply"
-    is a compressed PLY, "a.ply" an INRIA one), or None."""
-    name = filepath.lower()
-    best, best_length = None, 0
-    for f in splat_formats(writable_only):
-        for ending in f["extensions"]:
-            if name.endswith(ending) and len(ending) > best_length:
-                best, best_length = f, len(ending)
-    return best
+    """The core's entry for the format the file's name ends with (the core's match_splat_format: the longest ending
+    that matches, so "a.compressed.ply" is a compressed PLY, "a.ply" an INRIA one), or None."""
+    match = native.core().match_splat_format(filepath, writable_only)
+    return None if match is None else next(f for f in splat_formats() if f["name"] == match["name"])
+
+
+def with_splat_extension(filepath, extension):
+    """`filepath` ending in `extension`: the ending of a format the core writes (the whole ".compressed.ply") is
+    replaced, anything else kept and the extension added."""
+    match = native.core().match_splat_format(filepath, True)
+    return filepath[:len(filepath) - len(match["ending"])] + extension if match else filepath + extension
 
 
 def writable_splat_formats():
@@ -197,8 +199,8 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0
     core = native.core()
     splat_format = splat_format_of(filepath)
     base = os.path.basename(filepath)
-    extension = next((e for e in sorted(splat_extensions(), key=len, reverse=True) if base.lower().endswith(e)),
-                     os.path.splitext(base)[1])
+    match = core.match_splat_format(base)
+    extension = match["ending"] if match else os.path.splitext(base)[1]
     name = base[:len(base) - len(extension)] or "Gaussians"  # "guitar.compressed.ply" -> "guitar"
     if base.lower() == "meta.json":  # an unbundled SOG: its folder names the scene
         name = os.path.basename(os.path.dirname(os.path.abspath(filepath))) or "Gaussians"

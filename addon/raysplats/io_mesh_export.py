@@ -49,11 +49,11 @@ def mesh_format_of(filepath):
 
 
 def with_extension(filepath, extension, known_extensions):
-    """`filepath` ending in `extension`: a known extension (the longest it ends with, so that ".compressed.ply" goes
-    whole) is replaced, anything else kept and the extension added."""
-    name = filepath.lower()
-    current = max((known for known in known_extensions if name.endswith(known)), key=len, default="")
-    return filepath[:len(filepath) - len(current)] + extension
+    """`filepath` ending in `extension`: its extension replaced when it is one of `known_extensions` (one dot each,
+    as MESH_EXTENSIONS; splat files, whose endings may have two, go through io_import.with_splat_extension), anything
+    else kept and the extension added."""
+    stem, current = os.path.splitext(filepath)
+    return (stem if current.lower() in known_extensions else filepath) + extension
 
 
 class NothingToExport(ValueError):

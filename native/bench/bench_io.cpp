@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
             }
             for (int rep = 0; rep < 3; ++rep) {
                 const auto t0 = clock::now();
-                raysplats::read_gltf_splats(out.string());
+                raysplats::read_splat_file(out.string());
                 best_read = std::min(best_read, std::chrono::duration<double>(clock::now() - t0).count());
             }
             const double glb_mb = double(fs::file_size(out)) / 1e6;

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "io/io_common.h"
+#include "io/splat_formats.h"
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/splat_io.h"

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "../tests/sog_test_util.h"
+#include "io/splat_formats.h"
 #include "raysplats/mesh_export.h"
 #include "raysplats/splat_io.h"
 

@@ -13,6 +13,7 @@
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/gaussian_transform.h"
+#include "raysplats/gltf_contents.h"
 #include "raysplats/memory_budget.h"
 #include "raysplats/polygon_bridge.h"
 #include "raysplats/spatial_pieces.h"
@@ -267,9 +268,14 @@ PYBIND11_MODULE(_native, m) {
     py::register_exception<raysplats::FileFormatError>(m, "FileFormatError", error.ptr());
     py::register_exception<raysplats::InvalidArgument>(m, "InvalidArgument", PyExc_ValueError);
 
-    m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0,
-          "Reads a .ply/.splat/.spz/.compressed.ply/.sog file (or a SOG meta.json), or the KHR_gaussian_splatting splats of a .glb/.gltf. Returns a dict of numpy arrays (positions, rotations wxyz, linear "
-          "scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.");
+    // The docstrings that list formats take them from the core's format table.
+    static const std::string read_doc =
+        "Reads a splat file (" + raysplats::splat_endings_text(false, "/") +
+        "; the format from its content, else its name). Returns a dict of numpy arrays (positions, rotations wxyz, "
+        "linear scales, linear opacities, sh [N, coeffs, 3]), sh_degree and warnings.";
+    static const std::string write_doc = "Writes Gaussians atomically; the format comes from the file name's ending (" +
+                                         raysplats::splat_endings_text(true) + ").";
+    m.def("read_splats", &read_splats, "path"_a, "min_opacity"_a = 0.0f, "max_count"_a = 0, read_doc.c_str());
     m.def("probe_splat_file", [](const std::string& path) {
               const raysplats::SplatFileSummary s = raysplats::probe_splat_file(path);
               return py::dict("format"_a = raysplats::splat_format_name(s.format), "count"_a = s.count,
@@ -284,7 +290,7 @@ PYBIND11_MODULE(_native, m) {
     m.def("available_memory_bytes", &raysplats::available_memory_bytes,
           "Bytes that can be allocated without swapping (MemAvailable, within the cgroup limit); 0 if unknown.");
     m.def("write_splats", &write_splats, "path"_a, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a, "sh"_a,
-          "Writes Gaussians atomically; the format comes from the extension (.ply, .splat, .spz, .compressed.ply).");
+          write_doc.c_str());
     m.def("gaussians_to_polygons", &gaussians_to_polygons, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
           "sh"_a, "vertices_per_polygon"_a = 8, "radius"_a = 3.0f,
           "Flat K-gon per visible Gaussian at its radius rho_i = min(rho, sqrt(2 ln(255 a))), with the mesh topology, "
@@ -341,6 +347,15 @@ PYBIND11_MODULE(_native, m) {
           }, "path"_a,
           "What a glTF file holds: splat_primitives (KHR_gaussian_splatting), other_primitives, and the names of the "
           "meshes that hold only splat primitives. Raises FileFormatError for a file that is not valid glTF.");
+    m.def("match_splat_format", [](const std::string& path, bool writable_only) -> py::object {
+              const raysplats::SplatFormatMatch match = raysplats::match_splat_format(path, writable_only);
+              if (!match.format) return py::none();
+              return py::dict("name"_a = match.format->name,
+                              "ending"_a = path.substr(path.size() - match.ending_length));
+          }, "path"_a, "writable_only"_a = false,
+          "The format a file name ends with, by the core's rule (the longest ending of splat_formats() that matches, "
+          "case-insensitive: 'a.compressed.ply' is compressed_ply): dict of name and ending (the path's own last "
+          "characters that matched), or None. writable_only: among the formats the core writes.");
     m.def("splat_formats", &splat_formats,
           "The splat formats read and written: list of {name, extensions (the first is written), description, "
           "up_axis (the up direction of the cloud as read: '-Y', COLMAP, for every format), up_axis_by_specification "

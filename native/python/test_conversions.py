@@ -121,6 +121,16 @@ class Conversions(unittest.TestCase):
         self.assertEqual(formats["sog"]["extensions"], [".sog", "meta.json"])
         self.assertEqual([name for name, f in sorted(formats.items()) if not f["writable"]], ["gltf", "sog"])
         self.assertEqual(formats["spz"]["up_axis"], "-Y")  # read in the core's RDF, like .ply
+        # The file-name rule, bound: the longest ending wins, in any case; the ending is the path's own characters.
+        self.assertEqual(_native.match_splat_format("/a/S.Compressed.PLY"), {"name": "compressed_ply",
+                                                                             "ending": ".Compressed.PLY"})
+        self.assertEqual(_native.match_splat_format("/a/compressed.ply"), {"name": "ply", "ending": ".ply"})
+        self.assertEqual(_native.match_splat_format("/a/meta.json")["name"], "sog")
+        self.assertIsNone(_native.match_splat_format("/a/meta.json", writable_only=True))
+        self.assertIsNone(_native.match_splat_format("/a/scene.obj"))
+        self.assertIn(".compressed.ply", _native.write_splats.__doc__)
+        self.assertNotIn(".sog", _native.write_splats.__doc__)
+        self.assertIn("meta.json", _native.read_splats.__doc__)
         self.assertIn("FISHEYE_EQUISOLID", [m["name"] for m in _native.camera_models()])
         settings = {s["name"]: s for s in _native.render_settings()}
         self.assertEqual(settings["samples"]["type"], "int")

@@ -13,6 +13,7 @@
 #include <random>
 
 #include "core/morton_order.h"
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/memory_budget.h"

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/splat_io.h"

@@ -10,8 +10,10 @@
 #include <random>
 
 #include "core/linear_algebra.h"
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
+#include "raysplats/gltf_contents.h"
 #include "raysplats/mesh_export.h"
 #include "raysplats/spherical_harmonics.h"
 #include "raysplats/splat_io.h"

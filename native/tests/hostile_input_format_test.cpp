@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string>
 
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/splat_io.h"

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/splat_io.h"

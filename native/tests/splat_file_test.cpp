@@ -5,6 +5,7 @@
 
 #include <filesystem>
 
+#include "io/splat_formats.h"
 #include "io_test_util.h"
 #include "raysplats/errors.h"
 #include "raysplats/memory_budget.h"
@@ -23,6 +24,29 @@ TEST(SplatFile, FormatFromExtension) {
     EXPECT_STREQ(splat_format_name(SplatFormat::Spz), "spz");
     expect_format_error([] { splat_format_from_extension("dir.ply/scene.obj"); }, "scene.obj", {"'.obj'"});
     expect_format_error([] { splat_format_from_extension("noext"); }, "noext", {"unknown splat format"});
+}
+
+TEST(SplatFile, LongestEndingWins) {
+    // The one rule for file names (the add-on asks it through the bindings): longest ending, any case.
+    SplatFormatMatch m = match_splat_format("/scans/Scene.Compressed.PLY");
+    ASSERT_NE(m.format, nullptr);
+    EXPECT_STREQ(m.format->name, "compressed_ply");
+    EXPECT_EQ(m.ending_length, std::string(".compressed.ply").size());
+    m = match_splat_format("/scans/compressed.ply");  // no dot before "compressed": an INRIA PLY
+    ASSERT_NE(m.format, nullptr);
+    EXPECT_STREQ(m.format->name, "ply");
+    EXPECT_EQ(m.ending_length, 4u);
+    m = match_splat_format("/scans/unicorn/META.JSON");
+    ASSERT_NE(m.format, nullptr);
+    EXPECT_STREQ(m.format->name, "sog");
+    EXPECT_EQ(m.ending_length, 9u);
+    EXPECT_EQ(match_splat_format("/scans/unicorn/meta.json", true).format, nullptr);  // read only
+    EXPECT_EQ(match_splat_format("/scans/a.glb", true).format, nullptr);
+    EXPECT_STREQ(match_splat_format("/scans/a.spz", true).format->name, "spz");
+    EXPECT_EQ(match_splat_format("/scans/a.obj").format, nullptr);
+    EXPECT_EQ(match_splat_format("").format, nullptr);
+    EXPECT_EQ(splat_endings_text(true), ".ply, .splat, .spz, .compressed.ply");
+    EXPECT_EQ(splat_endings_text(false, "/"), ".ply/.splat/.spz/.glb/.gltf/.compressed.ply/.sog/meta.json");
 }
 
 TEST(SplatFile, DispatchByContentNotName) {
@@ -132,6 +156,37 @@ TEST(SplatFile, WriteEachFormatByExtension) {
         EXPECT_TRUE(leftover_temp_files(RAYSPLATS_TEST_TMP, name).empty()) << name;
     }
     expect_format_error([&] { write_splat_file(tmp_path("x.obj"), c); }, "x.obj", {"unknown splat format"});
+}
+
+TEST(SplatFormatRegistry, EveryRowCarriesItsFunctions) {
+    const GaussianCloud c = small_cloud();
+    ASSERT_EQ(io::splat_format_table().size(), splat_formats().size());
+    for (std::size_t i = 0; i < splat_formats().size(); ++i) {
+        const io::SplatFormatRow& row = io::splat_format_table()[i];
+        const SplatFormatInfo& info = splat_formats()[i];
+        SCOPED_TRACE(info.name);
+        EXPECT_EQ(row.info.format, info.format);
+        EXPECT_EQ(&io::splat_format_row(info.format), &row);
+        // Only compressed PLY has no detector of its own (the PLY row finds it); every row reads and probes.
+        EXPECT_EQ(row.detect == nullptr, info.format == SplatFormat::CompressedPly);
+        EXPECT_NE(row.read, nullptr);
+        EXPECT_NE(row.probe, nullptr);
+        EXPECT_EQ(info.writable, row.write != nullptr);
+        const std::string path = tmp_path(std::string("registry_") + info.name + info.extensions[0]);
+        fs::remove(path);
+        if (!row.write) {
+            // A read-only format is refused by name, with its own reason, and nothing is written.
+            ASSERT_NE(row.read_only_reason, nullptr);
+            expect_format_error([&] { write_splat_file(path, c); }, path, {row.read_only_reason});
+            EXPECT_FALSE(fs::exists(path));
+            continue;
+        }
+        // A written file reads back, and the probe and the dispatch name the format of the row that wrote it.
+        write_splat_file(path, c);
+        EXPECT_EQ(read_splat_file(path).size(), c.size());
+        EXPECT_EQ(probe_splat_file(path).format, info.format);
+        EXPECT_EQ(probe_splat_file(path).count, c.size());
+    }
 }
 
 TEST(SplatFileErrors, UnwritablePathNamesThePath) {

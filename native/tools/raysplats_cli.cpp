@@ -12,10 +12,16 @@ int render_command(int argc, char** argv);  // render_command.cpp
 int main(int argc, char** argv) {
     if (argc >= 2 && std::string(argv[1]) == "render") return raysplats::render_command(argc - 1, argv + 1);
     if (argc < 3) {
+        // The formats from the core's table: those written, and those only read.
+        std::string read_only;
+        for (const raysplats::SplatFormatInfo& f : raysplats::splat_formats())
+            if (!f.writable)
+                for (const char* ending : f.extensions) read_only += (read_only.empty() ? "" : " ") + std::string(ending);
         std::fprintf(stderr,
                      "usage: raysplats info FILE\n"
-                     "       raysplats convert IN OUT    (formats from the extensions: .ply .splat .spz .compressed.ply; .sog and meta.json in only)\n"
-                     "       raysplats render SPLATS [MESH.obj ...] [options]   (raysplats render --help)\n");
+                     "       raysplats convert IN OUT    (formats from the extensions: %s; %s in only)\n"
+                     "       raysplats render SPLATS [MESH.obj ...] [options]   (raysplats render --help)\n",
+                     raysplats::splat_endings_text(true, " ").c_str(), read_only.c_str());
         return 2;
     }
     const std::string command = argv[1];

@@ -43,6 +43,7 @@
 #include "core/morton_order.h"
 #include "io/io_common.h"
 #include "io/ply_header.h"
+#include "io/splat_formats.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {

@@ -11,6 +11,7 @@
 
 #include "core/color_math.h"
 #include "io/io_common.h"
+#include "io/splat_formats.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
@@ -88,6 +89,14 @@ void encode_rotation(const float* q_in, std::uint8_t* out) {
 }  // namespace
 
 namespace io {
+// No header: only the name says a file is .splat (and then other formats need their full signature).
+Evidence detect_dot_splat(const std::uint8_t*, std::size_t, const std::string& name, bool) {
+    return lower_extension(name) == ".splat" ? Evidence::Name : Evidence::None;
+}
+
+// The count from the size: the file is nothing but records.
+SplatFileSummary probe_dot_splat(const FileBytes& f) { return {SplatFormat::Splat, f.size() / kRecord, 0}; }
+
 GaussianCloud read_dot_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
     const std::string& path = f.path();
     if (f.size() == 0) throw FileFormatError(path, "file is empty");

@@ -33,6 +33,8 @@
 
 #include "core/linear_algebra.h"
 #include "io/io_common.h"
+#include "io/splat_formats.h"
+#include "raysplats/gltf_contents.h"
 #include "raysplats/spherical_harmonics.h"
 
 namespace raysplats {
@@ -563,6 +565,14 @@ tinygltf::Model load_model(const FileBytes& f) {
 GaussianCloud read_gltf_splats(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
     const tinygltf::Model model = load_model(f);
     return read_model(f.path(), model, options, report);
+}
+
+// The binary container's 'glTF' magic (under a .splat name with its version, 2), or a .gltf name (JSON: no magic).
+Evidence detect_gltf(const std::uint8_t* d, std::size_t size, const std::string& name, bool headerless_name) {
+    const bool glb = headerless_name ? starts_with(d, size, "glTF", 4) && size >= 8 && load_u32le(d + 4) == 2
+                                     : starts_with(d, size, "glTF", 4);
+    if (glb) return Evidence::Signature;
+    return lower_extension(name) == ".gltf" ? Evidence::Name : Evidence::None;
 }
 
 SplatFileSummary probe_gltf(const FileBytes& f) {

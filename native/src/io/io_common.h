@@ -152,36 +152,9 @@ private:
     std::exception_ptr error_;
 };
 
-// Header-only probes of each format (splat_io.h: probe_splat_file), beside their readers.
-SplatFileSummary probe_ply(const FileBytes& f);
-SplatFileSummary probe_spz(const FileBytes& f);
-SplatFileSummary probe_gltf(const FileBytes& f);  // gltf_splat_format.cpp: parses the JSON and checks the accessors
-
-// SuperSplat's compressed PLY (compressed_ply_format.cpp) is a PLY file: the PLY reader and probe hand it over
-// when is_compressed_ply says its header has the 'chunk' element and packed vertex properties.
-struct PlyHeader;
-bool is_compressed_ply(const PlyHeader& header);
-GaussianCloud read_compressed_ply_data(const std::uint8_t* data, std::size_t size, const std::string& path,
-                                       const PlyHeader& header, const ReadOptions& options, LoadReport* report);
-SplatFileSummary probe_compressed_ply(const std::uint8_t* data, std::size_t size, const std::string& path,
-                                      const PlyHeader& header);
-SplatFileSummary probe_sog(const FileBytes& f);
-// Whether a file is SOG (sog_format.cpp): zip magic in its first bytes, or a name ending in .sog or meta.json.
-bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size);
-bool is_zip(const std::uint8_t* data, std::size_t size);
-// Whether bytes are a gzip member whose content starts with SPZ's 'NGSP' magic (spz_format.cpp; inflates 4 bytes).
-bool gzip_holds_spz(const std::uint8_t* data, std::size_t size);
-
-// Each format's reader on a file's bytes (splat_io.h's path readers open a FileBytes and call these; read_splat_bytes
-// dispatches to them). Every error names f.path().
-GaussianCloud read_ply(const FileBytes& f, const ReadOptions& options, LoadReport* report);  // also compressed PLY
-GaussianCloud read_dot_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report);
-GaussianCloud read_spz(const FileBytes& f, const ReadOptions& options, LoadReport* report);
-GaussianCloud read_sog(const FileBytes& f, const ReadOptions& options, LoadReport* report);
-GaussianCloud read_gltf_splats(const FileBytes& f, const ReadOptions& options, LoadReport* report);
-
-// The format of a file's bytes: from its content first (PLY, SPZ (NGSP or gzip), zip (SOG), glTF magic), then from
-// its name (.gltf, .sog / meta.json, .splat). A name ending in .splat (headerless: any bytes can start a record) takes a
+// The format of a file's bytes (splat_file.cpp, over the table of io/splat_formats.h): the first format whose
+// signature the content carries (PLY, SPZ (NGSP or gzip), zip (SOG), glTF magic), else the format its name alone
+// gives (.gltf, .sog / meta.json, .splat). A name ending in .splat (headerless: any bytes can start a record) takes a
 // content format only for a full signature ('ply' and a line end, 'NGSP', gzip that inflates to 'NGSP', zip, glTF
 // binary version 2), since its first float can begin with any magic by chance (gzip's two bytes: 1 in 65,536).
 // Throws FileFormatError naming `name` for an empty file or an unknown format. A compressed PLY is SplatFormat::Ply

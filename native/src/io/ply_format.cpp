@@ -19,6 +19,7 @@
 
 #include "io/io_common.h"
 #include "io/ply_header.h"
+#include "io/splat_formats.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
@@ -250,6 +251,13 @@ void skip_ascii_element(AsciiCursor& cur, const PlyElement& e) {
 }  // namespace
 
 namespace io {
+// A file named .splat must start with 'ply' and a line end: its first float may spell "ply" by chance.
+Evidence detect_ply(const std::uint8_t* d, std::size_t size, const std::string&, bool headerless_name) {
+    const bool ply = headerless_name ? starts_with(d, size, "ply\n", 4) || starts_with(d, size, "ply\r", 4)
+                                     : starts_with(d, size, "ply", 3);
+    return ply ? Evidence::Signature : Evidence::None;
+}
+
 SplatFileSummary probe_ply(const FileBytes& f) {
     const PlyHeader h = io::parse_ply_header(f);
     if (io::is_compressed_ply(h)) return io::probe_compressed_ply(f.data(), f.size(), f.path(), h);

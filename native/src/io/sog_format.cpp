@@ -63,6 +63,7 @@
 #include <sys/stat.h>
 
 #include "io/io_common.h"
+#include "io/splat_formats.h"
 #include "raysplats/default_init_allocator.h"
 #include "raysplats/splat_io.h"
 
@@ -781,6 +782,13 @@ bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t 
     std::string lower = path;
     for (char& ch : lower) ch = char(std::tolower(static_cast<unsigned char>(ch)));
     return lower.size() >= 9 && lower.compare(lower.size() - 9, 9, "meta.json") == 0;
+}
+
+// A zip is a .sog bundle; an unbundled SOG is its meta.json, known by name (as a .sog that lacks the zip magic,
+// which the reader then refuses with its own message).
+Evidence detect_sog(const std::uint8_t* d, std::size_t size, const std::string& name, bool) {
+    if (is_zip(d, size)) return Evidence::Signature;
+    return is_sog_file(name, nullptr, 0) ? Evidence::Name : Evidence::None;
 }
 
 SplatFileSummary probe_sog(const FileBytes& f) {

@@ -1,4 +1,4 @@
-// Format dispatch, file access, atomic writes and the repair / filter step shared by all splat readers.
+// Format dispatch over the table, file access, atomic writes and the repair / filter step shared by all splat readers.
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -16,6 +16,7 @@
 #include <random>
 
 #include "io/io_common.h"
+#include "io/splat_formats.h"
 #include "raysplats/splat_io.h"
 
 namespace raysplats {
@@ -256,31 +257,29 @@ std::string lower_extension(const std::string& path) {
 }  // namespace io
 
 // -------------------------------------------------------------------------------------------------------------
-// Public dispatch
+// Dispatch over the format table (io/splat_formats.h)
 
 namespace io {
 
-namespace {
-bool starts_with(const std::uint8_t* d, std::size_t size, const char* magic, std::size_t n) {
-    return size >= n && std::memcmp(d, magic, n) == 0;
-}
-}  // namespace
-
 SplatFormat detect_splat_format(const std::uint8_t* d, std::size_t size, const std::string& name) {
+    return detect_splat_row(d, size, name).info.format;
+}
+
+const SplatFormatRow& detect_splat_row(const std::uint8_t* d, std::size_t size, const std::string& name) {
     if (size == 0) throw FileFormatError(name, "file is empty");
+    // A file named as a headerless format (.splat) may begin with any bytes: only a full signature counts then.
+    const SplatFormatMatch named = match_splat_format(name);
+    const bool headerless_name = named.format && splat_format_row(named.format->format).headerless;
+    // Content first: the first row whose signature the bytes carry; else the first row the name alone points to.
+    const SplatFormatRow* by_name = nullptr;
+    for (const SplatFormatRow& row : splat_format_table()) {
+        if (!row.detect) continue;
+        const Evidence evidence = row.detect(d, size, name, headerless_name);
+        if (evidence == Evidence::Signature) return row;
+        if (evidence == Evidence::Name && !by_name) by_name = &row;
+    }
+    if (by_name) return *by_name;
     const std::string e = lower_extension(name);
-    // A .splat has no header: its first bytes are a float that may spell any magic. Only a full signature counts.
-    const bool headerless = e == ".splat";
-    const bool ply = headerless ? starts_with(d, size, "ply\n", 4) || starts_with(d, size, "ply\r", 4) : starts_with(d, size, "ply", 3);
-    if (ply) return SplatFormat::Ply;
-    if (starts_with(d, size, "NGSP", 4)) return SplatFormat::Spz;
-    if (size >= 2 && d[0] == 0x1f && d[1] == 0x8b && (!headerless || gzip_holds_spz(d, size))) return SplatFormat::Spz;
-    if (is_zip(d, size)) return SplatFormat::Sog;
-    const bool glb = headerless ? starts_with(d, size, "glTF", 4) && size >= 8 && load_u32le(d + 4) == 2
-                                : starts_with(d, size, "glTF", 4);
-    if (glb || e == ".gltf") return SplatFormat::Gltf;
-    if (is_sog_file(name, nullptr, 0)) return SplatFormat::Sog;
-    if (headerless) return SplatFormat::Splat;
     if (e == ".ply" || e == ".spz")
         throw FileFormatError(name, "not a " + e.substr(1) + " file: unrecognised content (no 'ply', 'NGSP' or gzip magic)", 0);
     throw FileFormatError(name,
@@ -290,28 +289,10 @@ SplatFormat detect_splat_format(const std::uint8_t* d, std::size_t size, const s
 }
 
 GaussianCloud read_splat(const FileBytes& f, const ReadOptions& options, LoadReport* report) {
-    switch (detect_splat_format(f.data(), f.size(), f.path())) {
-        case SplatFormat::Ply:
-        case SplatFormat::CompressedPly: return read_ply(f, options, report);
-        case SplatFormat::Spz: return read_spz(f, options, report);
-        case SplatFormat::Sog: return read_sog(f, options, report);
-        case SplatFormat::Gltf: return read_gltf_splats(f, options, report);
-        case SplatFormat::Splat: return read_dot_splat(f, options, report);
-    }
-    throw FileFormatError(f.path(), "unknown splat format");
+    return detect_splat_row(f.data(), f.size(), f.path()).read(f, options, report);
 }
 
-SplatFileSummary probe_splat(const FileBytes& f) {
-    switch (detect_splat_format(f.data(), f.size(), f.path())) {
-        case SplatFormat::Ply:
-        case SplatFormat::CompressedPly: return probe_ply(f);
-        case SplatFormat::Spz: return probe_spz(f);
-        case SplatFormat::Sog: return probe_sog(f);
-        case SplatFormat::Gltf: return probe_gltf(f);
-        case SplatFormat::Splat: return {SplatFormat::Splat, f.size() / 32, 0};
-    }
-    throw FileFormatError(f.path(), "unknown splat format");
-}
+SplatFileSummary probe_splat(const FileBytes& f) { return detect_splat_row(f.data(), f.size(), f.path()).probe(f); }
 
 GaussianCloud read_splat_bytes(const std::uint8_t* data, std::size_t size, const std::string& name, const ReadOptions& options,
                                LoadReport* report) {
@@ -331,17 +312,9 @@ GaussianCloud read_splat_file(const std::string& path, const ReadOptions& option
 SplatFileSummary probe_splat_file(const std::string& path) { return io::probe_splat(io::FileBytes(path)); }
 
 void write_splat_file(const std::string& path, const GaussianCloud& cloud) {
-    switch (splat_format_from_extension(path)) {
-        case SplatFormat::Ply: return write_ply(path, cloud);
-        case SplatFormat::Splat: return write_dot_splat(path, cloud);
-        case SplatFormat::Spz: return write_spz(path, cloud);
-        case SplatFormat::Gltf:
-            throw FileFormatError(path, "glTF splats are written by the mesh export (KHR_gaussian_splatting), not here");
-        case SplatFormat::CompressedPly: return write_compressed_ply(path, cloud);
-        case SplatFormat::Sog:
-            throw FileFormatError(path, "SOG is read only here: write .ply, .splat or .spz (PlayCanvas's splat-transform "
-                                        "converts those to SOG)");
-    }
+    const io::SplatFormatRow& row = io::splat_format_row(splat_format_from_extension(path));
+    if (!row.write) throw FileFormatError(path, row.read_only_reason);
+    row.write(path, cloud);
 }
 
 }  // namespace raysplats

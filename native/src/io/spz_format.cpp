@@ -51,6 +51,7 @@
 #include <cstring>
 
 #include "io/io_common.h"
+#include "io/splat_formats.h"
 #include "raysplats/spherical_harmonics.h"
 #include "raysplats/splat_io.h"
 
@@ -426,6 +427,14 @@ bool gzip_holds_spz(const std::uint8_t* data, std::size_t size) {
     const bool complete = zs.avail_out == 0;
     inflateEnd(&zs);
     return complete && load_u32le(magic) == kMagic;
+}
+
+// 'NGSP' (version 4), or gzip (versions 2 and 3); under a .splat name only gzip that inflates to 'NGSP'.
+Evidence detect_spz(const std::uint8_t* d, std::size_t size, const std::string&, bool headerless_name) {
+    if (starts_with(d, size, "NGSP", 4)) return Evidence::Signature;
+    if (size >= 2 && d[0] == 0x1f && d[1] == 0x8b && (!headerless_name || gzip_holds_spz(d, size)))
+        return Evidence::Signature;
+    return Evidence::None;
 }
 
 SplatFileSummary probe_spz(const FileBytes& f) {
