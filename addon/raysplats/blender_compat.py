@@ -113,10 +113,16 @@ def _native_gaussian_splat_type():
 NATIVE_GAUSSIAN_SPLAT_TYPE = _native_gaussian_splat_type()
 HAS_NATIVE_GAUSSIAN_SPLATS = NATIVE_GAUSSIAN_SPLAT_TYPE is not None
 
-# Python can add points to a PointCloud only where it has resize() (not in 3.4 to 5.0, where point clouds get their
-# points from geometry nodes). Without it our splats go to Blender as the vertices of a mesh that carries the same
-# point attributes.
-POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and hasattr(bpy.types.PointCloud, "resize")
+# Python can add points to a PointCloud only where it has resize() (5.2 on; not in 3.4 to 5.0, where point clouds get
+# their points from geometry nodes). resize is an RNA function: it is in bl_rna.functions, and hasattr on the type is
+# False for it (only an instance has it as an attribute).
+POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and "resize" in bpy.types.PointCloud.bl_rna.functions
+
+# Where our splats go as one point per Gaussian (compact objects, Convert > Blender Gaussian Splats): a Gaussian-splat
+# point cloud where Blender has one (5.3 on: Workbench, EEVEE and Cycles draw it in Object Mode); before, the vertices
+# of a mesh carrying the same point attributes (a mesh's points can be selected in Edit Mode; 5.2's plain point cloud
+# would be drawn as dots).
+SPLATS_AS_POINT_CLOUD = HAS_NATIVE_GAUSSIAN_SPLATS and POINTCLOUD_CAN_RESIZE
 
 _ATTRIBUTE_TYPES = set(bpy.types.Attribute.bl_rna.properties["data_type"].enum_items.keys())
 # Attribute types of the splat layout: 5.3 stores "radiance:base" as a float4 attribute (FLOAT4, a type 5.0 and older

@@ -295,7 +295,7 @@ class _PointViews:
         """Writes back what was read as copies, and tells Blender the points changed."""
         for elements, key, values in self.copies:
             elements.foreach_set(key, values)
-        self.data.update()
+        native_splats.tag_changed(self.data)
 
 
 def _grow(data, count):
@@ -382,7 +382,7 @@ def edit_region_as_polygons(context, obj, mask=None, vertices_per_polygon=REGION
     region_id = random.randrange(1, 2 ** 31 - 1)  # unique across compact objects, so that no merge mistakes one
     while region_id in regions:
         region_id = random.randrange(1, 2 ** 31 - 1)
-    up_axis = obj.get(native_splats.UP_AXIS_PROPERTY, "-Y")
+    up_axis = native_splats.object_up_axis(obj)
     region, warnings = add_gaussian_object(context, f"{obj.name} region", region_cloud, vertices_per_polygon, radius,
                                            up_axis, obj.raysplats.source_file)
     del region_cloud

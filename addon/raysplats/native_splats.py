@@ -33,6 +33,10 @@ ATTR_RADIANCE_BASE = "radiance:base"
 SH_REST_PREFIX = "radiance:sh_"
 # The file up axis our object had, kept on the native object so that converting back exports as before.
 UP_AXIS_PROPERTY = "raysplats_up_axis"
+# The up axis of a splat object Blender made (its PLY/SPZ importers): they keep the file's coordinates as object space
+# and put any placement in the object's matrix (identity: as in the file), so the file's axes are the object's and
+# export converts nothing ("Z": Blender's own convention).
+BLENDER_MADE_UP_AXIS = "Z"
 MAX_SH_DEGREE = 3  # what the core supports (the reference 3DGS); Blender's importers also read degree 4
 
 
@@ -117,11 +121,10 @@ def new_native_splat_data(name, gaussians):
     """A datablock with the splat layout holding `gaussians` (the core's dict): a Gaussian-splat PointCloud where the
     running Blender has one, else a mesh whose vertices carry the attributes."""
     count = len(gaussians["opacities"])
-    if blender_compat.POINTCLOUD_CAN_RESIZE:
+    if blender_compat.SPLATS_AS_POINT_CLOUD:
         data = bpy.data.pointclouds.new(name)
         data.resize(count)
-        if blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
-            data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
+        data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
         data.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(gaussians["positions"]).ravel())
     else:
         data = bpy.data.meshes.new(name)
@@ -137,8 +140,24 @@ def new_native_splat_data(name, gaussians):
     _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, base)
     for k in range(1, sh.shape[1]):
         _write(data, _sh_rest_name(k - 1), "FLOAT_VECTOR", sh[:, k, :])
-    data.update()
+    tag_changed(data)
     return data
+
+
+def object_up_axis(obj):
+    """The up axis of the file a splat point object's coordinates follow: the one recorded when the add-on made it,
+    else BLENDER_MADE_UP_AXIS (what Blender's importers do), never a guess."""
+    up_axis = obj.get(UP_AXIS_PROPERTY)
+    return up_axis if up_axis in {item[0] for item in axes.UP_AXIS_ITEMS} else BLENDER_MADE_UP_AXIS
+
+
+def tag_changed(data):
+    """Tells Blender the points of a splat datablock changed: a mesh recomputes what it derives (Mesh.update); a
+    PointCloud has no update(), only the depsgraph tag."""
+    if isinstance(data, bpy.types.Mesh):
+        data.update()
+    else:
+        data.update_tag()
 
 
 def _replace_in_scene(context, old, new, keep_original):
@@ -166,16 +185,13 @@ def convert_to_native_splats(context, obj, keep_original=False):
 
 def convert_from_native_splats(context, obj, vertices_per_polygon=8, radius=3.0, keep_original=False):
     """Our Gaussian object made from a Blender splat object `obj` (evaluated: geometry nodes applied), in the same
-    place. Its export up axis is the one the splats came from (see UP_AXIS_PROPERTY), else -Y, the axis of the
-    COLMAP-trained .ply scenes Blender's importer reads most. Returns the new object."""
+    place, exporting as `obj` does (object_up_axis). Returns the new object."""
     from .compact_splats import object_cloud  # (it imports this module)
     data = obj.evaluated_get(context.evaluated_depsgraph_get()).data
     cloud = object_cloud(obj, data)  # the Gaussians it shows: not those out in a region being edited
     if cloud is None:
         raise ValueError(f"'{obj.name}' has no Gaussians to convert")
-    up_axis = obj.get(UP_AXIS_PROPERTY, "-Y")
-    if up_axis not in {item[0] for item in axes.UP_AXIS_ITEMS}:
-        up_axis = "-Y"
+    up_axis = object_up_axis(obj)
     new, _ = add_gaussian_object(context, obj.name.removesuffix(" splats"), cloud, vertices_per_polygon, radius, up_axis)
     # add_gaussian_object linked it to the active collection; the converted object goes where the original was.
     for collection in list(new.users_collection):

@@ -12,7 +12,7 @@ def _draw_compact_settings(layout, obj):
     """A compact splat object (one point per Gaussian): what it is, and the way to edit a region of it."""
     column = layout.column()
     column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as compact points")
-    column.label(text=f"Up axis in the file: {obj.get(native_splats.UP_AXIS_PROPERTY, '-Y')}")
+    column.label(text=f"Up axis in the file: {native_splats.object_up_axis(obj)}")
     layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
     # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
     # deleted without merging keeps them out until restored.
