@@ -46,11 +46,12 @@ EXPECTED = {
     "QUATERNION_ATTRIBUTE_TYPE": since((4, 0), "QUATERNION", "FLOAT_COLOR"),
     "TRANSFORM_ROTATE_SIGN": since((5, 0), 1.0, -1.0),
     "IMAGE_FORMAT_HAS_MEDIA_TYPE": since((5, 0), True, False),
+    "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
+    "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
 }
 # Names in blender_compat.py that are the same on every version (layouts, keys), not probed.
 CONSTANTS = {"SOLID_COLOR_TYPE_ATTRIBUTE", "MESH_CORNER_VERTEX_ATTRIBUTE", "LOOP_VERTEX_OFFSET", "FACE_START_OFFSET",
-             "MESH_ARRAY_ATTRIBUTES", "MESH_SELECTION_ATTRIBUTES", "ATTRIBUTE_VALUE_KEY", "BMESH_LAYOUT",
-             "BPY_BMESH_POINTER_OFFSET", "BPY_BMELEM_POINTER_OFFSET"}
+             "MESH_ARRAY_ATTRIBUTES", "MESH_SELECTION_ATTRIBUTES", "ATTRIBUTE_VALUE_KEY", "BMESH_LAYOUT"}
 
 
 def running_version():
@@ -117,6 +118,29 @@ class CompatFacts(unittest.TestCase):
         finally:
             bpy.data.meshes.remove(mesh)
 
+    def test_bmesh_python_objects_hold_their_pointers_at_the_offsets(self):
+        # Read at the offsets, bmesh's Python objects must give a BMesh with the counts Python sees and a vertex at
+        # the position Python sees (a wrong offset reads a word of the object header: not an aligned pointer).
+        import ctypes
+
+        import bmesh
+        bm = bmesh.new()
+        try:
+            for k in range(5):
+                bm.verts.new((float(k), 0.0, 0.0))
+            bm.verts.ensure_lookup_table()
+            bm.faces.new([bm.verts[k] for k in range(4)])
+            layout = blender_compat.BMESH_LAYOUT
+            address = ctypes.c_void_p.from_address(id(bm) + blender_compat.BPY_BMESH_POINTER_OFFSET).value
+            self.assertTrue(address and address % 8 == 0, f"not a pointer: {address!r}")
+            counts = tuple(ctypes.c_int.from_address(address + layout[key]).value for key in ("totvert", "totface"))
+            self.assertEqual(counts, (5, 1))
+            vert = bm.verts[2]
+            element = ctypes.c_void_p.from_address(id(vert) + blender_compat.BPY_BMELEM_POINTER_OFFSET).value
+            self.assertTrue(element and element % 8 == 0, f"not a pointer: {element!r}")
+            self.assertEqual(tuple((ctypes.c_float * 3).from_address(element + layout["vert_co"])), (2.0, 0.0, 0.0))
+        finally:
+            bm.free()
 
 if __name__ == "__main__":
     unittest.main()

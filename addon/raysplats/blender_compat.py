@@ -150,10 +150,12 @@ BMESH_LAYOUT = {
     "loop_vert": 16, "loop_next": 56,  # BMLoop: head; BMVert *v; BMEdge *e; BMFace *f; radial_next, radial_prev; next
     "vert_flag": 1, "face_flag": 8,  # BM_VERT, BM_FACE
 }
-# bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): PyObject_VAR_HEAD, then BMesh *bm, then (for
-# elements) BMElem *ele.
-BPY_BMESH_POINTER_OFFSET = 3 * 8
-BPY_BMELEM_POINTER_OFFSET = 4 * 8
+# bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): a Python object header, then BMesh *bm, then
+# (for elements) BMElem *ele. The header is PyObject_VAR_HEAD (3 words) up to 5.1 and PyObject_HEAD (2 words) from 5.2
+# on (measured: 5.1.2 has the BMesh pointer at 24 bytes, 5.2.3 and 5.3.0 at 16; reading the old offset there crashes).
+_BPY_HEADER = 2 * 8 if _since(5, 2) else 3 * 8
+BPY_BMESH_POINTER_OFFSET = _BPY_HEADER
+BPY_BMELEM_POINTER_OFFSET = _BPY_HEADER + 8
 
 # --- Operators --------------------------------------------------------------------------------------------------------
 

@@ -517,9 +517,9 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
                 count, up_axis = sum(len(piece.data.polygons) for piece in pieces), pieces[0].raysplats.up_axis
                 form = f" in {len(pieces)} pieces" if pieces[0] is not obj else ""
             else:
-                from .native_splats import object_up_axis
-                count = len(getattr(obj.data, "points", obj.data.vertices))
-                up_axis, form = object_up_axis(obj), " as compact points"
+                from . import compact_splats, native_splats
+                count = compact_splats.point_count(obj.data)
+                up_axis, form = native_splats.object_up_axis(obj), " as compact points"
             self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}{form} "
                                   f"(up axis {up_axis})")
         # All of them selected, the last file's active (import_gaussian_splats selects only its own): for a split

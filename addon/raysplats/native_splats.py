@@ -131,17 +131,44 @@ def new_native_splat_data(name, gaussians):
         data.vertices.add(count)
         gaussian_mesh.write_mesh_array(data, "vertices", "co",
                                        np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel())
+    # (In the order 5.3's importers add them.)
+    sh = gaussians["sh"]
+    _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, _radiance_base(gaussians))
     _write(data, ATTR_SCALE, "FLOAT_VECTOR", gaussians["scales"])
     _write(data, ATTR_ROTATION, blender_compat.QUATERNION_ATTRIBUTE_TYPE, gaussians["rotations"])
-    sh = gaussians["sh"]
-    base = np.empty((count, 4), dtype=np.float32)
-    base[:, :3] = sh[:, 0, :]
-    base[:, 3] = gaussians["opacities"]
-    _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, base)
     for k in range(1, sh.shape[1]):
         _write(data, _sh_rest_name(k - 1), "FLOAT_VECTOR", sh[:, k, :])
     tag_changed(data)
     return data
+
+
+def _radiance_base(gaussians):
+    """radiance:base of each Gaussian: its SH DC coefficient (r, g, b) and opacity."""
+    base = np.empty((len(gaussians["opacities"]), 4), dtype=np.float32)
+    base[:, :3] = gaussians["sh"][:, 0, :]
+    base[:, 3] = gaussians["opacities"]
+    return base
+
+
+def write_native_splats(data, gaussians):
+    """Overwrites every point of a splat datablock with `gaussians` (the core's dict, one Gaussian per point, SH of
+    the datablock's degree as read_native_splats gives it), in the attributes it already has."""
+    count = _point_count(data)
+    if len(gaussians["opacities"]) != count:
+        raise errors.InternalError(f"'{data.name}': {len(gaussians['opacities'])} Gaussians for {count} points")
+    positions = np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel()
+    if hasattr(data, "vertices"):
+        gaussian_mesh.write_mesh_array(data, "vertices", "co", positions)
+    else:
+        data.attributes["position"].data.foreach_set("vector", positions)
+    sh = gaussians["sh"]
+    for names, width, values in (((ATTR_SCALE,), 3, gaussians["scales"]), (ROTATION_NAMES, 4, gaussians["rotations"]),
+                                 ((ATTR_RADIANCE_BASE,), 4, _radiance_base(gaussians)),
+                                 *(((_sh_rest_name(k - 1),), 3, sh[:, k, :]) for k in range(1, sh.shape[1]))):
+        attribute = _point_attribute(data, names, (width,))
+        attribute.data.foreach_set(blender_compat.ATTRIBUTE_VALUE_KEY[attribute.data_type],
+                                   np.ascontiguousarray(values, dtype=np.float32).ravel())
+    tag_changed(data)
 
 
 def object_up_axis(obj):

@@ -168,7 +168,7 @@ class SceneSync:
         """The Gaussians of an evaluated compact splat object in its own frame (its points' attributes; modifiers
         move the centres), or None when it has no points. In Edit Mode the evaluated mesh wraps the edit BMesh
         without filling its arrays: to_mesh() fills a copy."""
-        if obj.original.mode == "EDIT":
+        if obj.original.mode == "EDIT" and obj.type == "MESH":
             try:
                 return compact_splats.object_cloud(obj, obj.to_mesh())
             finally:
