@@ -108,10 +108,10 @@ class CompactImport(unittest.TestCase):
             representation, needed, note = io_import.check_import_memory(Machine(), st.data_file(SCENE), 8, 0,
                                                                          "AUTO")
             self.assertEqual((representation, needed), ("POINTS", points))
-            self.assertIn("imported as compact points", note)
+            self.assertIn(f"imported as {io_import.POINTS_NAME.lower()}", note)
             obj = st.import_file(SCENE)  # the operator's default is AUTO
         self.assertTrue(compact_splats.is_compact_object(obj))
-        with self.assertRaisesRegex(io_import.NotEnoughMemory, "import as Compact Points"):
+        with self.assertRaisesRegex(io_import.NotEnoughMemory, f"import as {io_import.POINTS_NAME}"):
             io_import.check_import_memory(Machine(), st.data_file(SCENE), 8, 0, "POLYGONS")
 
 

@@ -3,7 +3,7 @@
 # Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
 import bpy
 
-from . import compact_splats, gaussian_mesh, native_splats, splat_selection, splat_tools, splat_transform
+from . import compact_splats, gaussian_mesh, io_import, native_splats, splat_selection, splat_tools, splat_transform
 
 SIDEBAR_CATEGORY = "Splats"
 
@@ -11,7 +11,7 @@ SIDEBAR_CATEGORY = "Splats"
 def _draw_compact_settings(layout, obj):
     """A compact splat object (one point per Gaussian): what it is, and the way to edit a region of it."""
     column = layout.column()
-    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as compact points")
+    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as {io_import.POINTS_NAME.lower()}")
     column.label(text=f"Up axis in the file: {native_splats.object_up_axis(obj)}")
     layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
     # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
