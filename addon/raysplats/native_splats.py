@@ -3,8 +3,8 @@
 # ours (which edits, exports and ray traces our objects).
 #
 # The layout, as Blender 5.3's PLY/SPZ/USD importers write it (source/blender/io/common/IO_gsplat.*, ply_import_*):
-# one point per Gaussian, in object space (the importer puts the file's axis conversion in the object's matrix),
-# with these point attributes:
+# one point per Gaussian, in the file's own coordinates (the importers convert no axes: the object's matrix is the
+# identity), with these point attributes (in this order, on 5.3.0: position, radiance:base, scale, rotation, sh_k):
 #   position        float3      the centre
 #   scale           float3      the three standard deviations, LINEAR (the importer applies exp to the PLY's log
 #                               scales), as ours are
@@ -15,9 +15,9 @@
 #                               basis order (the PLY's f_rest_* regrouped per coefficient), as our sh[:, k + 1, :]
 # So no value is converted, only moved. The 5.3 release notes call the rotation attribute "quaternion" in places;
 # the importers' code names it "rotation", which is what is written here and read first ("quaternion" is read too).
-# Where the running Blender has no splat point cloud (5.0 and older: no PointCloud type, no way to add points from
-# Python, no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float ones as
-# FLOAT_COLOR (blender_compat has these facts).
+# Where the running Blender has no splat point cloud (5.2 and older: no PointCloud type; before 5.2 no way to add
+# points from Python and no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float
+# ones as FLOAT_COLOR where FLOAT4 is missing (blender_compat has these facts).
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty
