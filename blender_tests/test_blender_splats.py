@@ -208,6 +208,18 @@ class ImportAsBlenderSplats(unittest.TestCase):
                 np.testing.assert_allclose(values[ours.name], expected, rtol=0,
                                            atol=ROUND_OFF * max(float(np.abs(expected).max()), 1e-30))
 
+    def test_formats_blender_cannot_read_become_splat_point_clouds(self):
+        # PlayCanvas SPZ v4, SuperSplat's compressed .ply, .splat and .sog: 5.3's importers read none of them.
+        for name in ("biker_v4.spz", "guitar_supersplat.compressed.ply", "small.splat", "unicorn_sh3.sog"):
+            with self.subTest(name):
+                st.reset_scene()
+                obj = st.import_file(name, representation="POINTS", up_axis="Z", min_opacity=0.0)
+                self.assertEqual((obj.type, obj.data.type), ("POINTCLOUD", "GAUSSIAN_SPLAT"))
+                got = native_splats.read_native_splats(obj.data)
+                expected = st.native().read_splats(st.data_file(name))
+                for key in KEYS:
+                    np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
+
 
 if __name__ == "__main__":
     unittest.main()
