@@ -53,8 +53,10 @@ def render(engine, samples, name):
         scene.cycles.use_adaptive_sampling = False
         scene.cycles.use_denoising = False
         scene.cycles.seed = samples
-    else:
+    else:  # (Camera Rays as Splats as by default: F12 as a user gets it)
         scene.raysplats.samples = samples
+        scene.raysplats.use_adaptive_sampling = False
+        scene.raysplats.seed = samples
     path = os.path.join(args.out, f"{name}.exr")
     scene.render.filepath = path
     start = cpu_seconds()
