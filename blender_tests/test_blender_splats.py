@@ -148,6 +148,19 @@ class BlenderMadeSplatObject(unittest.TestCase):
         # The points now hold the mapped Gaussians (what Blender's own Apply leaves unchanged: scale and rotation).
         assert_mapped(self, native_splats.read_native_splats(self.obj.data), self.file, matrix)
 
+    def test_blenders_own_apply_is_reported(self):
+        # Blender's Apply Transform moves the centres only (scale and rotation attributes as they were): the export
+        # says so, and the exact Apply afterwards clears it.
+        from raysplats import io_export
+        place(self.obj, rotation=(0.0, 0.0, 0.5), scale=(2.0, 1.0, 0.5))
+        select_only(self.obj)
+        bpy.ops.object.transform_apply(location=False, rotation=True, scale=True)
+        warnings = io_export.export_gaussian_splats(bpy.context, st.tmp_file("blender_applied.ply"))[1]["warnings"]
+        self.assertEqual(len(warnings), 1)
+        self.assertIn("Blender's Apply Transform moved only", warnings[0])
+        self.assertEqual(bpy.ops.object.raysplats_apply_transform(), {"FINISHED"})
+        self.assertEqual(io_export.export_gaussian_splats(bpy.context, st.tmp_file("cleared.ply"))[1]["warnings"], [])
+
     def test_a_region_edits_as_polygons_and_merges_back(self):
         place(self.obj)
         mask = self.file["positions"][:, 0] > 0.5

@@ -23,7 +23,7 @@ _SAMPLED_VERTICES = 4
 
 def _placement(obj):
     world = np.array(obj.matrix_world, dtype=np.float64)
-    vertices = obj.data.vertices
+    vertices = obj.data.vertices if hasattr(obj.data, "vertices") else obj.data.points  # (a splat point cloud)
     step = max(1, len(vertices) // _SAMPLED_VERTICES)
     local = np.array([tuple(vertices[i].co) for i in range(0, len(vertices), step)][:_SAMPLED_VERTICES])
     return world, (local @ world[:3, :3].T + world[:3, 3]) if len(local) else local, len(vertices)
@@ -35,11 +35,11 @@ def forget_placements():
 
 
 def notice_corner_only_apply(objects, geometry_changed):
-    """Records CORNER_ONLY_APPLY_PROPERTY on the Gaussian objects whose mesh changed together with their transform while
-    their vertices stayed where they were in the world (what Apply Transform does), by a map that is not a similarity
-    (rotations and uniform scales keep the Gaussians exact)."""
+    """Records CORNER_ONLY_APPLY_PROPERTY on the splat objects whose geometry changed together with their transform
+    while their vertices (a point object's centres) stayed where they were in the world (what Apply Transform does), by
+    a map that is not a similarity (rotations and uniform scales keep the Gaussians exact)."""
     for obj in objects:
-        if not gaussian_mesh.is_gaussian_object(obj) or obj.mode == "EDIT":
+        if not is_splat_object(obj) or obj.mode == "EDIT":
             continue
         now = _placement(obj)
         before = _placements.get(obj.as_pointer())

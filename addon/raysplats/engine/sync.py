@@ -297,7 +297,8 @@ class SceneSync:
                         self.clouds[uid] = (index, len(cloud["opacities"]))
                         self._keep_source(uid, source, cloud)
             elif compact_splats.is_compact_object(obj):
-                for message in modifier_checks.compact_warnings(obj.original, for_render=not self.interactive):
+                for message in (modifier_checks.compact_warnings(obj.original, for_render=not self.interactive)
+                                + modifier_checks.corner_only_apply_warnings(obj.original)):
                     self._warn_once(message)
                 cloud = self._compact_cloud(obj)
                 if cloud is not None:
