@@ -127,7 +127,8 @@ for engine, counts in (("RAYSPLATS", args.raysplats_samples), ("CYCLES", args.cy
         rows.append({"samples": samples, "cpu_seconds": round(seconds, 2), "rmse": round(rmse(image, reference), 5),
                      "psnr_vs_viewer": round(ewa.psnr(viewer, image), 2)})
         print(engine, rows[-1], flush=True)
-    results["engines"][engine] = {"reference_samples": 4 * counts[-1], "reference_cpu_seconds": round(reference_seconds, 1),
+    results["engines"][engine] = {"reference_samples": 4 * counts[-1],
+                                  "reference_cpu_seconds": round(reference_seconds, 1),
                                   "reference_psnr_vs_viewer": round(ewa.psnr(viewer, reference), 2), "rows": rows}
     print(engine, "reference", results["engines"][engine]["reference_psnr_vs_viewer"], flush=True)
 

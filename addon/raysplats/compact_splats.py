@@ -150,12 +150,12 @@ def bake_matrix_into_points(obj, matrix):
     if data.users > 1:
         raise ValueError(f"'{obj.name}': its data '{data.name}' is shared by {data.users} objects; make it single user "
                          "first (Object > Relations > Make Single User)")
-    extra = [name for name in (native_splats._sh_rest_name(k) for k in range((native_splats.MAX_SH_DEGREE + 1) ** 2 - 1,
-                                                                           (native_splats.MAX_SH_DEGREE + 2) ** 2 - 1))
-             if data.attributes.get(name) is not None]
-    if extra:
-        raise ValueError(f"'{obj.name}' has SH of degree 4 ({extra[0]}, ...), which RaySplats cannot turn; its "
-                         "transform is not applied")
+    # Blender's importers also read SH degree 4 (radiance:sh_15 on), which the core does not turn: left as they are,
+    # those bands would no longer fit the Gaussians.
+    first_unsupported = native_splats._sh_rest_name((native_splats.MAX_SH_DEGREE + 1) ** 2 - 1)
+    if data.attributes.get(first_unsupported) is not None:
+        raise ValueError(f"'{obj.name}' has SH of degree 4 ({first_unsupported}, ...), which RaySplats cannot turn; "
+                         "its transform is not applied")
     if point_count(data):
         cloud = native_splats.read_native_splats(data)
         native_splats.write_native_splats(data, transformed_cloud(cloud, matrix))

@@ -173,8 +173,8 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, repre
         why = (f"as polygons they would need about {memory_size_text(polygons)} "
                f"({memory_size_text(available)} available)" if polygons > available
                else f"more than {AUTO_POLYGON_LIMIT:,} Gaussians are edited a region at a time")
-        return "POINTS", points, (f"imported as {POINTS_NAME.lower()} ({why}); select a region in Edit Mode and use Edit "
-                                  "Selected as Polygons to edit it")
+        return "POINTS", points, (f"imported as {POINTS_NAME.lower()} ({why}); select a region in Edit Mode and use "
+                                  "Edit Selected as Polygons to edit it")
     if polygons > available:
         raise _not_enough(filepath, count, polygons, available,
                           f"{limit}, use fewer Polygon Vertices, or import as {POINTS_NAME} (about "
