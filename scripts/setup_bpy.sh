@@ -3,7 +3,8 @@
 # Blender tests also run on the Blender versions users have (docs/design.md §9). Prints the venv's python on
 # success. When PyPI cannot be reached or has no such bpy, it says so on stderr, prints nothing and exits 0,
 # so that the other Blender tests still run.
-#   scripts/setup_bpy.sh VERSION [venv-dir]      VERSION: 4.2, 4.5, 5.0 (a Blender major.minor)
+#   scripts/setup_bpy.sh VERSION [venv-dir]      VERSION: 4.2, 4.5, 5.0, 5.2, 5.3 (a Blender major.minor)
+# The newest release of that major.minor is installed (e.g. 5.2 -> 5.2.3, the newest 5.2 LTS).
 # The venv is ~/.cache/raysplats/bpy<major><minor>-venv (e.g. bpy42-venv) unless venv-dir is given.
 set -uo pipefail
 version=${1:?usage: scripts/setup_bpy.sh VERSION [venv-dir]   (VERSION e.g. 4.2, 4.5, 5.0)}
@@ -15,10 +16,24 @@ if [[ -x $venv/bin/python ]] && "$venv/bin/python" -c "import bpy, sys; sys.exit
 fi
 mkdir -p "$(dirname "$venv")"
 # Blender 4.2 to 5.0 embed Python 3.11, which is Debian 12's /usr/bin/python3: the bpy wheels and our
-# module (built for /usr/bin/python3) are made for it. Blender 5.1+ embeds 3.13 and is not on PyPI yet.
-/usr/bin/python3 -m venv "$venv" >&2 || { echo "setup_bpy: could not make a venv in $venv; Blender $version tests skipped" >&2; exit 0; }
-# numpy<2: the bpy 4.x wheels are built against numpy 1.x (Blender's glTF add-on and ours use it).
-if ! "$venv/bin/pip" install -q "bpy==$version.*" "numpy<2" >&2; then
+# module (built for /usr/bin/python3) are made for it. Blender 5.1+ embeds Python 3.13: its bpy wheels are
+# cp313 only, so the venv uses the Python 3.13 that scripts/setup_python313.sh finds (the same interpreter
+# the 3.13 native module is built with).
+# numpy<2: the bpy 4.x wheels are built against numpy 1.x (Blender's glTF add-on and ours use it); the
+# cp313 wheels name the numpy they need themselves.
+interpreter=/usr/bin/python3
+numpy="numpy<2"
+if [[ $version =~ ^([0-9]+)\.([0-9]+)$ ]] && (( BASH_REMATCH[1] * 100 + BASH_REMATCH[2] >= 501 )); then
+  interpreter=$("$(dirname "$0")/setup_python313.sh" --interpreter)
+  numpy=numpy
+  if [[ -z $interpreter ]]; then
+    echo "setup_bpy: Blender $version needs Python 3.13 and none was found (python3.13 on PATH, ~/.pyenv/versions/3.13*," \
+         "or RAYSPLATS_PYTHON313); Blender $version tests skipped" >&2
+    exit 0
+  fi
+fi
+"$interpreter" -m venv "$venv" >&2 || { echo "setup_bpy: could not make a venv in $venv; Blender $version tests skipped" >&2; exit 0; }
+if ! "$venv/bin/pip" install -q "bpy==$version.*" "$numpy" >&2; then
   echo "setup_bpy: bpy $version not installed (PyPI unreachable?); Blender $version tests skipped" >&2
   exit 0
 fi

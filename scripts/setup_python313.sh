@@ -6,10 +6,13 @@
 # from PyPI. Prints the venv's python; prints nothing and exits 0, saying why on stderr, when there is no
 # Python 3.13 or PyPI cannot be reached (the 3.13 module is then not built).
 #   scripts/setup_python313.sh [venv-dir]
+#   scripts/setup_python313.sh --interpreter     prints the Python 3.13 interpreter found (or nothing), no venv
 set -uo pipefail
+find_only=0
+[[ ${1:-} == --interpreter ]] && { find_only=1; shift; }
 venv=${1:-$HOME/.cache/raysplats/py313-venv}
 ok() { "$1" -c "import sys, pybind11, numpy; sys.exit(sys.version_info[:2] != (3, 13))" >/dev/null 2>&1; }
-if [[ -x $venv/bin/python ]] && ok "$venv/bin/python"; then
+if (( ! find_only )) && [[ -x $venv/bin/python ]] && ok "$venv/bin/python"; then
   echo "$venv/bin/python"
   exit 0
 fi
@@ -22,6 +25,10 @@ if [[ -z $interpreter ]]; then
       break
     fi
   done
+fi
+if (( find_only )); then
+  [[ -n $interpreter ]] && echo "$interpreter"
+  exit 0
 fi
 if [[ -z $interpreter ]]; then
   echo "setup_python313: no Python 3.13 found (python3.13 on PATH, ~/.pyenv/versions/3.13*, or RAYSPLATS_PYTHON313);" \

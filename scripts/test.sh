@@ -3,7 +3,8 @@
 # tests of the module, the Blender tests, which run in `blender -b --factory-startup --python-exit-code 1` on
 # Debian's Blender 3.4 and as the PyPI `bpy` module of official builds, and the extension zip's install test).
 #   scripts/test.sh [extra ctest arguments]
-# Blender versions: RAYSPLATS_TEST_BLENDERS (official builds besides Debian's 3.4) is by default "4.2 4.5 5.0".
+# Blender versions: RAYSPLATS_TEST_BLENDERS (official builds besides Debian's 3.4) is by default "4.2 4.5 5.0 5.2 5.3"
+# (5.2 and 5.3 embed Python 3.13: their venvs use the interpreter scripts/setup_python313.sh finds).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 "$root/scripts/install_deps.sh"
@@ -11,7 +12,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 "$root/scripts/setup_test_tools.sh" >/dev/null
 # One cached venv per official Blender (PyPI bpy); a version PyPI cannot give is skipped with a message.
 bpy_pythons=()
-for version in ${RAYSPLATS_TEST_BLENDERS-4.2 4.5 5.0}; do
+for version in ${RAYSPLATS_TEST_BLENDERS-4.2 4.5 5.0 5.2 5.3}; do
   python=$("$root/scripts/setup_bpy.sh" "$version")
   [[ -n $python ]] && bpy_pythons+=("$version=$python")
 done

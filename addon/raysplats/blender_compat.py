@@ -97,10 +97,10 @@ MESH_SELECTION_ATTRIBUTES = (".select_vert", ".select_edge", ".select_poly")
 
 # --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
 
-# Blender 5.3 gave PointCloud a type, "Points" or "3D Gaussian Splats", and renders the latter as splats from the point
-# attributes its PLY/SPZ importers write (native_splats.py has the layout). The RNA identifier of that type item is
-# not in any Blender we can run (4.2 to 5.0 have no PointCloud.type), so it is found by its name: None where the
-# feature is missing.
+# Blender 5.3 gave PointCloud a type, POINTS ("Points") or GAUSSIAN_SPLAT ("3D Gaussian Splat"), and renders the
+# latter as splats from the point attributes its PLY/SPZ importers write (native_splats.py has the layout). 5.2 and
+# older have no PointCloud.type. The item is found by its name, so that a renamed identifier is still found: None
+# where the feature is missing.
 def _native_gaussian_splat_type():
     if not hasattr(bpy.types, "PointCloud") or "type" not in bpy.types.PointCloud.bl_rna.properties:
         return None
@@ -113,10 +113,16 @@ def _native_gaussian_splat_type():
 NATIVE_GAUSSIAN_SPLAT_TYPE = _native_gaussian_splat_type()
 HAS_NATIVE_GAUSSIAN_SPLATS = NATIVE_GAUSSIAN_SPLAT_TYPE is not None
 
-# Python can add points to a PointCloud only where it has resize() (not in 3.4 to 5.0, where point clouds get their
-# points from geometry nodes). Without it our splats go to Blender as the vertices of a mesh that carries the same
-# point attributes.
-POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and hasattr(bpy.types.PointCloud, "resize")
+# Python can add points to a PointCloud only where it has resize() (5.2 on; not in 3.4 to 5.0, where point clouds get
+# their points from geometry nodes). resize is an RNA function: it is in bl_rna.functions, and hasattr on the type is
+# False for it (only an instance has it as an attribute).
+POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and "resize" in bpy.types.PointCloud.bl_rna.functions
+
+# Where our splats go as one point per Gaussian (compact objects, Convert > Blender Gaussian Splats): a Gaussian-splat
+# point cloud where Blender has one (5.3 on: Workbench, EEVEE and Cycles draw it in Object Mode); before, the vertices
+# of a mesh carrying the same point attributes (a mesh's points can be selected in Edit Mode; 5.2's plain point cloud
+# would be drawn as dots).
+SPLATS_AS_POINT_CLOUD = HAS_NATIVE_GAUSSIAN_SPLATS and POINTCLOUD_CAN_RESIZE
 
 _ATTRIBUTE_TYPES = set(bpy.types.Attribute.bl_rna.properties["data_type"].enum_items.keys())
 # Attribute types of the splat layout: 5.3 stores "radiance:base" as a float4 attribute (FLOAT4, a type 5.0 and older
@@ -144,10 +150,12 @@ BMESH_LAYOUT = {
     "loop_vert": 16, "loop_next": 56,  # BMLoop: head; BMVert *v; BMEdge *e; BMFace *f; radial_next, radial_prev; next
     "vert_flag": 1, "face_flag": 8,  # BM_VERT, BM_FACE
 }
-# bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): PyObject_VAR_HEAD, then BMesh *bm, then (for
-# elements) BMElem *ele.
-BPY_BMESH_POINTER_OFFSET = 3 * 8
-BPY_BMELEM_POINTER_OFFSET = 4 * 8
+# bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): a Python object header, then BMesh *bm, then
+# (for elements) BMElem *ele. The header is PyObject_VAR_HEAD (3 words) up to 5.1 and PyObject_HEAD (2 words) from 5.2
+# on (measured: 5.1.2 has the BMesh pointer at 24 bytes, 5.2.3 and 5.3.0 at 16; reading the old offset there crashes).
+_BPY_HEADER = 2 * 8 if _since(5, 2) else 3 * 8
+BPY_BMESH_POINTER_OFFSET = _BPY_HEADER
+BPY_BMELEM_POINTER_OFFSET = _BPY_HEADER + 8
 
 # --- Operators --------------------------------------------------------------------------------------------------------
 

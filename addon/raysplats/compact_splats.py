@@ -139,6 +139,29 @@ def transformed_cloud(cloud, matrix):
     return mapped
 
 
+def bake_matrix_into_points(obj, matrix):
+    """Rewrites every point of compact object `obj` as its Gaussian mapped by `matrix` (4x4, any affine map: centre,
+    covariance A Σ Aᵀ as rotation and scales, SH turned by the rotation; transformed_cloud), the points out in a region
+    too, so that Merge Back (which maps a region by the objects' matrices) still lands them where they are seen. The
+    object's transform is left as it is. Returns the number of Gaussians it shows."""
+    if obj.mode == "EDIT":
+        raise ValueError(f"'{obj.name}' is in Edit Mode; apply transforms in Object Mode")
+    data = obj.data
+    if data.users > 1:
+        raise ValueError(f"'{obj.name}': its data '{data.name}' is shared by {data.users} objects; make it single user "
+                         "first (Object > Relations > Make Single User)")
+    # Blender's importers also read SH degree 4 (radiance:sh_15 on), which the core does not turn: left as they are,
+    # those bands would no longer fit the Gaussians.
+    first_unsupported = native_splats._sh_rest_name((native_splats.MAX_SH_DEGREE + 1) ** 2 - 1)
+    if data.attributes.get(first_unsupported) is not None:
+        raise ValueError(f"'{obj.name}' has SH of degree 4 ({first_unsupported}, ...), which RaySplats cannot turn; "
+                         "its transform is not applied")
+    if point_count(data):
+        cloud = native_splats.read_native_splats(data)
+        native_splats.write_native_splats(data, transformed_cloud(cloud, matrix))
+    return gaussian_count(data)
+
+
 def _take(cloud, rows):
     part = {key: np.ascontiguousarray(cloud[key][rows]) for key in CLOUD_KEYS}
     part["sh_degree"] = cloud["sh_degree"]
@@ -165,9 +188,18 @@ def selected_points(data):
         else:
             data.vertices.foreach_get("select", mask)
     else:
+        # A point cloud keeps its Edit Mode selection in ".selection"; without it every point is selected (Blender's
+        # convention for point clouds and curves: the attribute's default is True).
+        # (Blender may also store it as a float, 0 to 1, as for curves' soft selection.)
         attribute = data.attributes.get(".selection")
-        if attribute is not None:
+        if attribute is not None and attribute.data_type == "BOOLEAN" and attribute.domain == "POINT":
             attribute.data.foreach_get("value", mask)
+        elif attribute is not None and attribute.data_type == "FLOAT" and attribute.domain == "POINT":
+            weights = np.empty(count, dtype=np.float32)
+            attribute.data.foreach_get("value", weights)
+            mask = weights > 0.0
+        else:
+            mask[:] = True
     return mask
 
 
@@ -295,7 +327,7 @@ class _PointViews:
         """Writes back what was read as copies, and tells Blender the points changed."""
         for elements, key, values in self.copies:
             elements.foreach_set(key, values)
-        self.data.update()
+        native_splats.tag_changed(self.data)
 
 
 def _grow(data, count):
@@ -382,7 +414,7 @@ def edit_region_as_polygons(context, obj, mask=None, vertices_per_polygon=REGION
     region_id = random.randrange(1, 2 ** 31 - 1)  # unique across compact objects, so that no merge mistakes one
     while region_id in regions:
         region_id = random.randrange(1, 2 ** 31 - 1)
-    up_axis = obj.get(native_splats.UP_AXIS_PROPERTY, "-Y")
+    up_axis = native_splats.object_up_axis(obj)
     region, warnings = add_gaussian_object(context, f"{obj.name} region", region_cloud, vertices_per_polygon, radius,
                                            up_axis, obj.raysplats.source_file)
     del region_cloud

@@ -26,7 +26,7 @@ def gaussian_objects(context, limit_to=export_scope.DEFAULT_LIMIT_TO):
 def _object_up_axis(obj):
     if gaussian_mesh.is_gaussian_object(obj):
         return obj.raysplats.up_axis
-    return obj.get(native_splats.UP_AXIS_PROPERTY, "-Y")
+    return native_splats.object_up_axis(obj)
 
 
 def _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers):

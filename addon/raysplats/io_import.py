@@ -75,15 +75,17 @@ def memory_size_text(n):
     return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.0f} MB"
 
 
-# Import representations (compact_splats.py): AUTO picks polygons for scenes they suit, compact points beyond.
+# Import representations (compact_splats.py): AUTO picks polygons for scenes they suit, compact points beyond. Where
+# compact points are Blender's own Gaussian-splat point cloud (5.3 on), they are called by its name.
+POINTS_NAME = "Blender Gaussian Splats" if blender_compat.SPLATS_AS_POINT_CLOUD else "Compact Points"
 REPRESENTATION_ITEMS = (
     ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "
                           "beyond"),
     ("POLYGONS", "Editable Polygons", "One polygon per Gaussian, editable with every Blender tool (about 350-620 "
                                       "bytes per Gaussian as quadrilaterals, Auto's choice above a million, about "
                                       "twice that as octagons, and several KB in Edit Mode)"),
-    ("POINTS", "Compact Points", "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms "
-                                 "and exports exactly; edit a region as polygons with Edit Selected as Polygons"),
+    ("POINTS", POINTS_NAME, "One point per Gaussian (about 60 bytes each, more with SH): renders, transforms and "
+                            "exports exactly; edit a region as polygons with Edit Selected as Polygons"),
 )
 # Above this many Gaussians AUTO imports compact points: Blender's Edit Mode costs about 5 KB per polygon Gaussian
 # (docs/benchmarks.md, Import), so bigger scenes are edited a region at a time.
@@ -173,11 +175,11 @@ def check_import_memory(core, filepath, vertices_per_polygon, max_count=0, repre
         why = (f"as polygons they would need about {memory_size_text(polygons)} "
                f"({memory_size_text(available)} available)" if polygons > available
                else f"more than {AUTO_POLYGON_LIMIT:,} Gaussians are edited a region at a time")
-        return "POINTS", points, (f"imported as compact points ({why}); select a region in Edit Mode and use Edit "
-                                  "Selected as Polygons to edit it")
+        return "POINTS", points, (f"imported as {POINTS_NAME.lower()} ({why}); select a region in Edit Mode and use "
+                                  "Edit Selected as Polygons to edit it")
     if polygons > available:
         raise _not_enough(filepath, count, polygons, available,
-                          f"{limit}, use fewer Polygon Vertices, or import as Compact Points (about "
+                          f"{limit}, use fewer Polygon Vertices, or import as {POINTS_NAME} (about "
                           f"{memory_size_text(points)})")
     return "POLYGONS", polygons, None
 
@@ -519,9 +521,9 @@ class IMPORT_SCENE_OT_gaussian_splats(bpy.types.Operator, ImportHelper):
                 count, up_axis = sum(len(piece.data.polygons) for piece in pieces), pieces[0].raysplats.up_axis
                 form = f" in {len(pieces)} pieces" if pieces[0] is not obj else ""
             else:
-                from .native_splats import UP_AXIS_PROPERTY
-                count = len(getattr(obj.data, "points", obj.data.vertices))
-                up_axis, form = obj.get(UP_AXIS_PROPERTY, "-Y"), " as compact points"
+                from . import compact_splats, native_splats
+                count = compact_splats.point_count(obj.data)
+                up_axis, form = native_splats.object_up_axis(obj), f" as {POINTS_NAME.lower()}"
             self.report({"INFO"}, f"Imported {count:,} Gaussians from {os.path.basename(path)}{form} "
                                   f"(up axis {up_axis})")
         # All of them selected, the last file's active (import_gaussian_splats selects only its own): for a split

@@ -30,9 +30,9 @@ def corner_only_apply_warnings(obj):
     from .splat_transform import CORNER_ONLY_APPLY_PROPERTY
     if not obj.get(CORNER_ONLY_APPLY_PROPERTY):
         return []
-    return [f"'{obj.name}': Blender's Apply Transform moved only the splat polygons' corners under a non-uniform scale "
-            "or shear, which changes the Gaussians' thickness; undo it and use Object > Apply (Ctrl+A) > Gaussian "
-            "Splats (exact)"]
+    return [f"'{obj.name}': Blender's Apply Transform moved only the splat polygons' corners (or the splat points' "
+            "centres) under a non-uniform scale or shear, which changes the Gaussians' shapes; undo it and use Object "
+            "> Apply (Ctrl+A) > Gaussian Splats (exact)"]
 
 
 def fidelity_warnings(obj, for_render):
@@ -60,6 +60,7 @@ def export_warnings(objects, apply_modifiers):
         if is_gaussian_object(obj):
             messages += (topology_warnings(obj, for_render=False) if apply_modifiers else []) \
                 + corner_only_apply_warnings(obj)
-        elif is_compact_object(obj) and apply_modifiers:
-            messages += compact_warnings(obj, for_render=False)
+        elif is_compact_object(obj):
+            messages += (compact_warnings(obj, for_render=False) if apply_modifiers else []) \
+                + corner_only_apply_warnings(obj)
     return messages

@@ -3,8 +3,8 @@
 # ours (which edits, exports and ray traces our objects).
 #
 # The layout, as Blender 5.3's PLY/SPZ/USD importers write it (source/blender/io/common/IO_gsplat.*, ply_import_*):
-# one point per Gaussian, in object space (the importer puts the file's axis conversion in the object's matrix),
-# with these point attributes:
+# one point per Gaussian, in the file's own coordinates (the importers convert no axes: the object's matrix is the
+# identity), with these point attributes (in this order, on 5.3.0: position, radiance:base, scale, rotation, sh_k):
 #   position        float3      the centre
 #   scale           float3      the three standard deviations, LINEAR (the importer applies exp to the PLY's log
 #                               scales), as ours are
@@ -15,9 +15,9 @@
 #                               basis order (the PLY's f_rest_* regrouped per coefficient), as our sh[:, k + 1, :]
 # So no value is converted, only moved. The 5.3 release notes call the rotation attribute "quaternion" in places;
 # the importers' code names it "rotation", which is what is written here and read first ("quaternion" is read too).
-# Where the running Blender has no splat point cloud (5.0 and older: no PointCloud type, no way to add points from
-# Python, no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float ones as
-# FLOAT_COLOR (blender_compat has these facts).
+# Where the running Blender has no splat point cloud (5.2 and older: no PointCloud type; before 5.2 no way to add
+# points from Python and no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float
+# ones as FLOAT_COLOR where FLOAT4 is missing (blender_compat has these facts).
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty
@@ -33,6 +33,10 @@ ATTR_RADIANCE_BASE = "radiance:base"
 SH_REST_PREFIX = "radiance:sh_"
 # The file up axis our object had, kept on the native object so that converting back exports as before.
 UP_AXIS_PROPERTY = "raysplats_up_axis"
+# The up axis of a splat object Blender made (its PLY/SPZ importers): they keep the file's coordinates as object space
+# and put any placement in the object's matrix (identity: as in the file), so the file's axes are the object's and
+# export converts nothing ("Z": Blender's own convention).
+BLENDER_MADE_UP_AXIS = "Z"
 MAX_SH_DEGREE = 3  # what the core supports (the reference 3DGS); Blender's importers also read degree 4
 
 
@@ -117,28 +121,70 @@ def new_native_splat_data(name, gaussians):
     """A datablock with the splat layout holding `gaussians` (the core's dict): a Gaussian-splat PointCloud where the
     running Blender has one, else a mesh whose vertices carry the attributes."""
     count = len(gaussians["opacities"])
-    if blender_compat.POINTCLOUD_CAN_RESIZE:
+    if blender_compat.SPLATS_AS_POINT_CLOUD:
         data = bpy.data.pointclouds.new(name)
         data.resize(count)
-        if blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
-            data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
+        data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
         data.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(gaussians["positions"]).ravel())
     else:
         data = bpy.data.meshes.new(name)
         data.vertices.add(count)
         gaussian_mesh.write_mesh_array(data, "vertices", "co",
                                        np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel())
+    # (In the order 5.3's importers add them.)
+    sh = gaussians["sh"]
+    _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, _radiance_base(gaussians))
     _write(data, ATTR_SCALE, "FLOAT_VECTOR", gaussians["scales"])
     _write(data, ATTR_ROTATION, blender_compat.QUATERNION_ATTRIBUTE_TYPE, gaussians["rotations"])
-    sh = gaussians["sh"]
-    base = np.empty((count, 4), dtype=np.float32)
-    base[:, :3] = sh[:, 0, :]
-    base[:, 3] = gaussians["opacities"]
-    _write(data, ATTR_RADIANCE_BASE, blender_compat.FLOAT4_ATTRIBUTE_TYPE, base)
     for k in range(1, sh.shape[1]):
         _write(data, _sh_rest_name(k - 1), "FLOAT_VECTOR", sh[:, k, :])
-    data.update()
+    tag_changed(data)
     return data
+
+
+def _radiance_base(gaussians):
+    """radiance:base of each Gaussian: its SH DC coefficient (r, g, b) and opacity."""
+    base = np.empty((len(gaussians["opacities"]), 4), dtype=np.float32)
+    base[:, :3] = gaussians["sh"][:, 0, :]
+    base[:, 3] = gaussians["opacities"]
+    return base
+
+
+def write_native_splats(data, gaussians):
+    """Overwrites every point of a splat datablock with `gaussians` (the core's dict, one Gaussian per point, SH of
+    the datablock's degree as read_native_splats gives it), in the attributes it already has."""
+    count = _point_count(data)
+    if len(gaussians["opacities"]) != count:
+        raise errors.InternalError(f"'{data.name}': {len(gaussians['opacities'])} Gaussians for {count} points")
+    positions = np.ascontiguousarray(gaussians["positions"], dtype=np.float32).ravel()
+    if hasattr(data, "vertices"):
+        gaussian_mesh.write_mesh_array(data, "vertices", "co", positions)
+    else:
+        data.attributes["position"].data.foreach_set("vector", positions)
+    sh = gaussians["sh"]
+    for names, width, values in (((ATTR_SCALE,), 3, gaussians["scales"]), (ROTATION_NAMES, 4, gaussians["rotations"]),
+                                 ((ATTR_RADIANCE_BASE,), 4, _radiance_base(gaussians)),
+                                 *(((_sh_rest_name(k - 1),), 3, sh[:, k, :]) for k in range(1, sh.shape[1]))):
+        attribute = _point_attribute(data, names, (width,))
+        attribute.data.foreach_set(blender_compat.ATTRIBUTE_VALUE_KEY[attribute.data_type],
+                                   np.ascontiguousarray(values, dtype=np.float32).ravel())
+    tag_changed(data)
+
+
+def object_up_axis(obj):
+    """The up axis of the file a splat point object's coordinates follow: the one recorded when the add-on made it,
+    else BLENDER_MADE_UP_AXIS (what Blender's importers do), never a guess."""
+    up_axis = obj.get(UP_AXIS_PROPERTY)
+    return up_axis if up_axis in {item[0] for item in axes.UP_AXIS_ITEMS} else BLENDER_MADE_UP_AXIS
+
+
+def tag_changed(data):
+    """Tells Blender the points of a splat datablock changed: a mesh recomputes what it derives (Mesh.update); a
+    PointCloud has no update(), only the depsgraph tag."""
+    if isinstance(data, bpy.types.Mesh):
+        data.update()
+    else:
+        data.update_tag()
 
 
 def _replace_in_scene(context, old, new, keep_original):
@@ -166,16 +212,13 @@ def convert_to_native_splats(context, obj, keep_original=False):
 
 def convert_from_native_splats(context, obj, vertices_per_polygon=8, radius=3.0, keep_original=False):
     """Our Gaussian object made from a Blender splat object `obj` (evaluated: geometry nodes applied), in the same
-    place. Its export up axis is the one the splats came from (see UP_AXIS_PROPERTY), else -Y, the axis of the
-    COLMAP-trained .ply scenes Blender's importer reads most. Returns the new object."""
+    place, exporting as `obj` does (object_up_axis). Returns the new object."""
     from .compact_splats import object_cloud  # (it imports this module)
     data = obj.evaluated_get(context.evaluated_depsgraph_get()).data
     cloud = object_cloud(obj, data)  # the Gaussians it shows: not those out in a region being edited
     if cloud is None:
         raise ValueError(f"'{obj.name}' has no Gaussians to convert")
-    up_axis = obj.get(UP_AXIS_PROPERTY, "-Y")
-    if up_axis not in {item[0] for item in axes.UP_AXIS_ITEMS}:
-        up_axis = "-Y"
+    up_axis = object_up_axis(obj)
     new, _ = add_gaussian_object(context, obj.name.removesuffix(" splats"), cloud, vertices_per_polygon, radius, up_axis)
     # add_gaussian_object linked it to the active collection; the converted object goes where the original was.
     for collection in list(new.users_collection):

@@ -7,8 +7,7 @@ import numpy as np
 from bpy.props import BoolProperty
 from mathutils import Matrix
 
-from . import color_adjustment, errors, gaussian_mesh, native
-from .splat_selection import target_objects
+from . import color_adjustment, compact_splats, errors, gaussian_mesh, native
 from .splat_tools import refresh_corner_colors
 
 # Blender's own Apply Transform (object.transform_apply) moves only a splat object's polygon corners: exact for
@@ -24,7 +23,7 @@ _SAMPLED_VERTICES = 4
 
 def _placement(obj):
     world = np.array(obj.matrix_world, dtype=np.float64)
-    vertices = obj.data.vertices
+    vertices = obj.data.vertices if hasattr(obj.data, "vertices") else obj.data.points  # (a splat point cloud)
     step = max(1, len(vertices) // _SAMPLED_VERTICES)
     local = np.array([tuple(vertices[i].co) for i in range(0, len(vertices), step)][:_SAMPLED_VERTICES])
     return world, (local @ world[:3, :3].T + world[:3, 3]) if len(local) else local, len(vertices)
@@ -36,11 +35,11 @@ def forget_placements():
 
 
 def notice_corner_only_apply(objects, geometry_changed):
-    """Records CORNER_ONLY_APPLY_PROPERTY on the Gaussian objects whose mesh changed together with their transform while
-    their vertices stayed where they were in the world (what Apply Transform does), by a map that is not a similarity
-    (rotations and uniform scales keep the Gaussians exact)."""
+    """Records CORNER_ONLY_APPLY_PROPERTY on the splat objects whose geometry changed together with their transform
+    while their vertices (a point object's centres) stayed where they were in the world (what Apply Transform does), by
+    a map that is not a similarity (rotations and uniform scales keep the Gaussians exact)."""
     for obj in objects:
-        if not gaussian_mesh.is_gaussian_object(obj) or obj.mode == "EDIT":
+        if not is_splat_object(obj) or obj.mode == "EDIT":
             continue
         now = _placement(obj)
         before = _placements.get(obj.as_pointer())
@@ -56,6 +55,12 @@ def notice_corner_only_apply(objects, geometry_changed):
             obj[CORNER_ONLY_APPLY_PROPERTY] = True
 
 
+def is_splat_object(obj):
+    """A splat object whose transform the exact Apply bakes: polygon Gaussians, or compact points (ours or the
+    splat point clouds Blender's own importers make)."""
+    return gaussian_mesh.is_gaussian_object(obj) or compact_splats.is_compact_object(obj)
+
+
 class OBJECT_OT_raysplats_apply_transform(bpy.types.Operator):
     """Apply the object's transform to its Gaussians exactly (full covariance, thickness and view-dependent colour
     included), unlike Apply > Scale/Rotation, which moves only the polygons' corners"""
@@ -69,11 +74,12 @@ class OBJECT_OT_raysplats_apply_transform(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.mode == "OBJECT" and gaussian_mesh.is_gaussian_object(context.active_object)
+        return context.mode == "OBJECT" and is_splat_object(context.active_object)
 
     @errors.reports_failures("Apply transform failed: ")
     def execute(self, context):
-        for obj in target_objects(context):
+        objects = [obj for obj in (context.selected_objects or [context.active_object]) if is_splat_object(obj)]
+        for obj in objects:
             count = apply_transform_exactly(obj, self.location, self.rotation, self.scale)
             self.report({"INFO"}, f"'{obj.name}': transform applied to {count:,} Gaussians")
         return {"FINISHED"}
@@ -123,7 +129,10 @@ def apply_transform_exactly(obj, location, rotation, scale):
     if not scale:
         kept = kept @ Matrix.Diagonal(sca.to_4d())
     applied = kept.inverted_safe() @ basis
-    count = bake_matrix_into_gaussians(obj, np.array(applied, dtype=np.float64))
+    if gaussian_mesh.is_gaussian_object(obj):
+        count = bake_matrix_into_gaussians(obj, np.array(applied, dtype=np.float64))
+    else:
+        count = compact_splats.bake_matrix_into_points(obj, np.array(applied, dtype=np.float64))
     obj.matrix_basis = kept
     # The rebuilt mesh holds exact Gaussians again: no longer the corners of an earlier inexact apply, and this
     # placement change is not Blender's apply.

@@ -3,7 +3,7 @@
 # Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
 import bpy
 
-from . import compact_splats, gaussian_mesh, native_splats, splat_selection, splat_tools, splat_transform
+from . import compact_splats, gaussian_mesh, io_import, native_splats, splat_selection, splat_tools, splat_transform
 
 SIDEBAR_CATEGORY = "Splats"
 
@@ -11,8 +11,8 @@ SIDEBAR_CATEGORY = "Splats"
 def _draw_compact_settings(layout, obj):
     """A compact splat object (one point per Gaussian): what it is, and the way to edit a region of it."""
     column = layout.column()
-    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as compact points")
-    column.label(text=f"Up axis in the file: {obj.get(native_splats.UP_AXIS_PROPERTY, '-Y')}")
+    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as {io_import.POINTS_NAME.lower()}")
+    column.label(text=f"Up axis in the file: {native_splats.object_up_axis(obj)}")
     layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
     # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
     # deleted without merging keeps them out until restored.
@@ -214,9 +214,10 @@ def _draw_exact_apply(layout):
 
 
 def _draw_apply_menu(self, context):
-    # Object > Apply: Blender's own Apply moves only the polygons' corners, which loses a Gaussian's thickness and its
-    # exact shape under a non-uniform scale; for splat objects the exact entries come first.
-    if gaussian_mesh.is_gaussian_object(context.active_object) and not getattr(context, "raysplats_exact_shown", False):
+    # Object > Apply: Blender's own Apply moves only the polygons' corners (the centres of points), which loses a
+    # Gaussian's thickness and its exact shape under a non-uniform scale; for splat objects the exact entries come
+    # first.
+    if splat_transform.is_splat_object(context.active_object) and not getattr(context, "raysplats_exact_shown", False):
         self.layout.label(text="Gaussian Splats (exact)")
         _draw_exact_apply(self.layout)
         self.layout.separator()
@@ -230,13 +231,13 @@ class VIEW3D_MT_raysplats_apply(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
-        if not gaussian_mesh.is_gaussian_object(context.active_object):
+        if not splat_transform.is_splat_object(context.active_object):
             layout.menu_contents("VIEW3D_MT_object_apply")
             return
         _draw_exact_apply(layout)
         layout.separator()
         layout.context_pointer_set("raysplats_exact_shown", context.active_object)
-        layout.menu("VIEW3D_MT_object_apply", text="Blender's Apply (polygon corners only)")
+        layout.menu("VIEW3D_MT_object_apply", text="Blender's Apply (corners and centres only)")
 
 
 # Key map items the add-on added (key map, item), removed again on unregister.

@@ -168,7 +168,7 @@ class SceneSync:
         """The Gaussians of an evaluated compact splat object in its own frame (its points' attributes; modifiers
         move the centres), or None when it has no points. In Edit Mode the evaluated mesh wraps the edit BMesh
         without filling its arrays: to_mesh() fills a copy."""
-        if obj.original.mode == "EDIT":
+        if obj.original.mode == "EDIT" and obj.type == "MESH":
             try:
                 return compact_splats.object_cloud(obj, obj.to_mesh())
             finally:
@@ -297,7 +297,8 @@ class SceneSync:
                         self.clouds[uid] = (index, len(cloud["opacities"]))
                         self._keep_source(uid, source, cloud)
             elif compact_splats.is_compact_object(obj):
-                for message in modifier_checks.compact_warnings(obj.original, for_render=not self.interactive):
+                for message in (modifier_checks.compact_warnings(obj.original, for_render=not self.interactive)
+                                + modifier_checks.corner_only_apply_warnings(obj.original)):
                     self._warn_once(message)
                 cloud = self._compact_cloud(obj)
                 if cloud is not None:
