@@ -21,15 +21,21 @@ SCENE = "small_sh3_inria.ply"  # 9,080 real Gaussians with SH degree 3: quick to
 AS_MODULE = not bpy.app.binary_path or os.path.basename(bpy.app.binary_path).startswith("python")
 
 
-def build_shot(blend_path, splat_path=None, frames=(1, 6), width=64, height=36, samples=2, **import_options):
+def build_shot(blend_path, splat_path=None, frames=(1, 6), width=64, height=36, samples=2, blender_import=False,
+               **import_options):
     """A turntable of a real splat scene: the camera circles it from frames[0] to frames[1] (30 degrees), RaySplats
     at width x height with `samples` samples, Animate Seed on, a transparent film, PNG output; saved to blend_path.
-    Returns the imported object (an empty with pieces, a polygon object or a compact object, by import_options)."""
+    Returns the imported object (an empty with pieces, a polygon object or a compact object, by import_options; with
+    blender_import, the Gaussian-splat point cloud Blender's own PLY importer makes, 5.3+)."""
     st.reset_render_scene(width, height, samples)
     scene = bpy.context.scene
-    from raysplats import io_import
-    obj, _, _ = io_import.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE), **import_options)
-    meshes = [o for o in scene.objects if o.type == "MESH"]
+    if blender_import:
+        bpy.ops.wm.ply_import(filepath=splat_path or st.data_file(SCENE))
+        obj = bpy.context.view_layer.objects.active
+    else:
+        from raysplats import io_import
+        obj, _, _ = io_import.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE), **import_options)
+    meshes = [o for o in scene.objects if o.type in {"MESH", "POINTCLOUD"}]
     corners = [o.matrix_world @ Vector(corner) for o in meshes for corner in o.bound_box]
     centre = sum(corners, Vector()) / len(corners)
     radius = max((corner - centre).length for corner in corners)

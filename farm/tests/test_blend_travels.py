@@ -1,5 +1,6 @@
 # The data travels with the .blend: a saved shot holds everything a RaySplats render needs, in each form of a splat
-# object (one polygon object, pieces under an empty, compact points), with no path back to the splat file it came
+# object (one polygon object, pieces under an empty, compact points, and on 5.3+ the Gaussian-splat point cloud of
+# Blender's own PLY importer), with no path back to the splat file it came
 # from. Each form: imported from a copy of a real scene, saved, rendered headless on "machine 1"; then the .blend is
 # copied to another folder, the splat file deleted, and "machine 2" (another process, another home and user folder,
 # and as root another user, who could not read the first folder anyway) renders it: the same pixels, bit for bit
@@ -27,7 +28,7 @@ class BlendTravels(unittest.TestCase):
         shutil.copyfile(st.data_file(ft.SCENE), source)
         blend = os.path.join(root, "machine1", "shot.blend")
         obj = ft.build_shot(blend, splat_path=source, **import_options)
-        gaussian_objects = [o for o in bpy.data.objects if o.type == "MESH"]
+        gaussian_objects = [o for o in bpy.data.objects if o.type in {"MESH", "POINTCLOUD"}]
         self.assertTrue(gaussian_objects)
         # Blender's list of the file's external files (images, libraries, caches...) has nothing of the splat file.
         external = bpy.utils.blend_paths(absolute=True)
@@ -76,5 +77,16 @@ class BlendTravels(unittest.TestCase):
 
     def test_compact_points(self):
         obj = self.travel("compact", representation="POINTS")
-        self.assertEqual(len(obj.data.polygons), 0)
-        self.assertGreater(len(obj.data.vertices), 9000)
+        if obj.type == "POINTCLOUD":  # Blender 5.3+: the compact form is a Gaussian-splat point cloud
+            self.assertGreater(len(obj.data.points), 9000)
+        else:
+            self.assertEqual(len(obj.data.polygons), 0)
+            self.assertGreater(len(obj.data.vertices), 9000)
+
+    def test_blender_made_splats(self):
+        from raysplats import blender_compat
+        if not blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+            self.skipTest(f"Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3+)")
+        obj = self.travel("blender_splats", blender_import=True)
+        self.assertEqual(obj.type, "POINTCLOUD")
+        self.assertGreater(len(obj.data.points), 9000)
