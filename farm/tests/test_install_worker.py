@@ -31,6 +31,17 @@ def install(case, zip_path=None):
     return run.returncode, run.stdout + run.stderr, user
 
 
+def worker_python():
+    """The worker Blender's Python as "311" or "313" (Blender 5.1+ embeds 3.13; the test itself may run on another)."""
+    probe = "import sys; print('WORKER_PYTHON %d%d' % sys.version_info[:2])"
+    if ARGS.bpy_python:
+        command = [ARGS.bpy_python, "-c", probe]
+    else:
+        command = [ARGS.blender, "-b", "--factory-startup", "-noaudio", "--python-expr", probe]
+    output = subprocess.run(command, capture_output=True, text=True, timeout=300).stdout
+    return next(line.split()[1] for line in output.splitlines() if line.startswith("WORKER_PYTHON "))
+
+
 def variant(name, drop):
     """A copy of the zip without the members `drop` picks (stored, not compressed: it is read once)."""
     path = os.path.join(ARGS.tmp_dir, name)
@@ -48,7 +59,7 @@ class InstallWorker(unittest.TestCase):
         self.assertIn("check_worker: RAYSPLATS works in Blender", output)
         # The add-on the fresh process rendered with is the installed copy, in this user folder.
         self.assertRegex(output, r"add-on \S*raysplats at " + os.path.realpath(user))
-        self.assertIn(f"_native.cpython-{sys.version_info.major}{sys.version_info.minor}", output)
+        self.assertIn(f"_native.cpython-{worker_python()}", output)
 
     def test_installed_command_line_converts(self):
         # The add-on's command line as a farm job runs it (farm/openjd/raysplats_convert.yaml): imported from the
@@ -90,12 +101,14 @@ class InstallWorker(unittest.TestCase):
         self.assertIn("install_worker: the worker cannot render with RaySplats", output)
 
     def test_zip_for_another_python_fails(self):
-        # Only the module of Blender 5.1+ (Python 3.13): a Blender with Python 3.11 cannot load it.
-        zip_path = variant("python313_only.zip", lambda n: n.startswith("_native.cpython-311"))
+        # Only the other Python's module (3.13 for Blender 4.2-5.0 and 3.4, 3.11 for 5.1+): the worker cannot load it.
+        own = worker_python()
+        other = "311" if own == "313" else "313"
+        zip_path = variant(f"python{other}_only.zip", lambda n: n.startswith(f"_native.cpython-{own}"))
         status, output, _ = install("wrong_python", zip_path)
         self.assertEqual(status, 1, output)
-        self.assertIn("Python 3.11", output)
-        self.assertIn("_native.cpython-313-x86_64-linux-gnu.so", output)  # what the add-on has instead
+        self.assertIn(f"Python {own[0]}.{own[1:]}", output)
+        self.assertIn(f"_native.cpython-{other}-x86_64-linux-gnu.so", output)  # what the add-on has instead
 
     def test_not_an_extension_zip_fails(self):
         zip_path = variant("no_manifest.zip", lambda n: n == "blender_manifest.toml")
