@@ -81,17 +81,9 @@ inline void set_packet_lane(RTCRayHit16& rh, int l, const Ray& ray, float tfar) 
 // would run. An empty segment (tnear 0, tfar -inf, the value Embree itself writes to mark an occluded ray) is
 // inactive on every path, and the ray is a valid one (finite origin, unit direction) for any code that reads it.
 inline void set_packet_lane_inactive(RTCRayHit16& rh, int l) {
-    rh.ray.org_x[l] = rh.ray.org_y[l] = rh.ray.org_z[l] = 0.0f;
-    rh.ray.dir_x[l] = rh.ray.dir_y[l] = 0.0f;
-    rh.ray.dir_z[l] = 1.0f;
-    rh.ray.tnear[l] = 0.0f;
-    rh.ray.tfar[l] = -std::numeric_limits<float>::infinity();
-    rh.ray.time[l] = 0.0f;
+    set_packet_lane(rh, l, Ray{glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), 0.0f, 0.0f},
+                    -std::numeric_limits<float>::infinity());
     rh.ray.mask[l] = 0u;
-    rh.ray.id[l] = unsigned(l);
-    rh.ray.flags[l] = 0;
-    rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
 }
 
 // Creates the Embree user geometry of a chunk of `chunk.set` (bounds + intersect + occluded callbacks for the set's
