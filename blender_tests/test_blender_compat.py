@@ -1,4 +1,4 @@
-# Every fact of blender_compat.py against its value on each Blender version the suite runs on (Debian's 3.4 and the
+# Every fact of compat.py against its value on each Blender version the suite runs on (Debian's 3.4 and the
 # official 4.2, 4.5, 5.0, 5.2 and 5.3 builds), written out here by hand from each Blender's behaviour, so that a probe
 # that answers wrongly (hasattr on an RNA function is False, so PointCloud.resize went unseen on 5.2 and 5.3) fails
 # here instead of silently choosing the older path. The facts that can be tried are also tried on the running Blender.
@@ -7,7 +7,7 @@ import unittest
 import bpy
 import numpy as np
 
-from raysplats import blender_compat
+from raysplats.blender import compat
 
 VERSIONS = ((3, 4), (4, 2), (4, 5), (5, 0), (5, 2), (5, 3))
 
@@ -49,7 +49,7 @@ EXPECTED = {
     "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
     "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
 }
-# Names in blender_compat.py that are the same on every version (layouts, keys), not probed.
+# Names in compat.py that are the same on every version (layouts, keys), not probed.
 CONSTANTS = {"SOLID_COLOR_TYPE_ATTRIBUTE", "MESH_CORNER_VERTEX_ATTRIBUTE", "LOOP_VERTEX_OFFSET", "FACE_START_OFFSET",
              "MESH_ARRAY_ATTRIBUTES", "MESH_SELECTION_ATTRIBUTES", "ATTRIBUTE_VALUE_KEY", "BMESH_LAYOUT"}
 
@@ -60,9 +60,9 @@ def running_version():
 
 class CompatFacts(unittest.TestCase):
     def test_every_fact_is_in_the_table(self):
-        names = {name for name in vars(blender_compat) if name.isupper() and not name.startswith("_")}
+        names = {name for name in vars(compat) if name.isupper() and not name.startswith("_")}
         self.assertEqual(names - CONSTANTS, set(EXPECTED),
-                         "a fact added to blender_compat.py needs its value per version here (or CONSTANTS)")
+                         "a fact added to compat.py needs its value per version here (or CONSTANTS)")
 
     def test_each_fact_has_this_versions_value(self):
         version = running_version()
@@ -70,7 +70,7 @@ class CompatFacts(unittest.TestCase):
             self.skipTest(f"Blender {version[0]}.{version[1]} is not in this test's table (add its column)")
         for name, values in EXPECTED.items():
             with self.subTest(name):
-                actual, expected = getattr(blender_compat, name), values[version]
+                actual, expected = getattr(compat, name), values[version]
                 if isinstance(expected, float):
                     self.assertAlmostEqual(actual, expected, places=12)
                 else:
@@ -86,7 +86,7 @@ class CompatFacts(unittest.TestCase):
                 resized = len(data.points) == 10
             except AttributeError:
                 resized = False
-            self.assertEqual(blender_compat.POINTCLOUD_CAN_RESIZE, resized)
+            self.assertEqual(compat.POINTCLOUD_CAN_RESIZE, resized)
         finally:
             bpy.data.pointclouds.remove(data)
 
@@ -95,8 +95,8 @@ class CompatFacts(unittest.TestCase):
             self.skipTest("this Blender has no PointCloud type")
         data = bpy.data.pointclouds.new("probe")
         try:
-            if blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
-                data.type = blender_compat.NATIVE_GAUSSIAN_SPLAT_TYPE
+            if compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+                data.type = compat.NATIVE_GAUSSIAN_SPLAT_TYPE
                 self.assertEqual(data.type, "GAUSSIAN_SPLAT")
             else:
                 self.assertFalse(hasattr(data, "type"))
@@ -108,9 +108,9 @@ class CompatFacts(unittest.TestCase):
         try:
             mesh.vertices.add(2)
             values = np.array([0.25, -3.0, 7.5, 2.0, 1e-3, 0.0, -0.5, 9.0], np.float32)
-            for data_type in (blender_compat.FLOAT4_ATTRIBUTE_TYPE, blender_compat.QUATERNION_ATTRIBUTE_TYPE):
+            for data_type in (compat.FLOAT4_ATTRIBUTE_TYPE, compat.QUATERNION_ATTRIBUTE_TYPE):
                 attribute = mesh.attributes.new(f"probe {data_type}", data_type, "POINT")
-                key = blender_compat.ATTRIBUTE_VALUE_KEY[data_type]
+                key = compat.ATTRIBUTE_VALUE_KEY[data_type]
                 attribute.data.foreach_set(key, values)
                 back = np.empty(8, np.float32)
                 attribute.data.foreach_get(key, back)
@@ -130,13 +130,13 @@ class CompatFacts(unittest.TestCase):
                 bm.verts.new((float(k), 0.0, 0.0))
             bm.verts.ensure_lookup_table()
             bm.faces.new([bm.verts[k] for k in range(4)])
-            layout = blender_compat.BMESH_LAYOUT
-            address = ctypes.c_void_p.from_address(id(bm) + blender_compat.BPY_BMESH_POINTER_OFFSET).value
+            layout = compat.BMESH_LAYOUT
+            address = ctypes.c_void_p.from_address(id(bm) + compat.BPY_BMESH_POINTER_OFFSET).value
             self.assertTrue(address and address % 8 == 0, f"not a pointer: {address!r}")
             counts = tuple(ctypes.c_int.from_address(address + layout[key]).value for key in ("totvert", "totface"))
             self.assertEqual(counts, (5, 1))
             vert = bm.verts[2]
-            element = ctypes.c_void_p.from_address(id(vert) + blender_compat.BPY_BMELEM_POINTER_OFFSET).value
+            element = ctypes.c_void_p.from_address(id(vert) + compat.BPY_BMELEM_POINTER_OFFSET).value
             self.assertTrue(element and element % 8 == 0, f"not a pointer: {element!r}")
             self.assertEqual(tuple((ctypes.c_float * 3).from_address(element + layout["vert_co"])), (2.0, 0.0, 0.0))
         finally:

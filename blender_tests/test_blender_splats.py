@@ -11,7 +11,9 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat, compact_splats, gaussian_mesh, native_splats, splat_transform
+from raysplats.blender import compat
+from raysplats.objects import blender_splats, compact_points, polygon_mesh, splat_object
+from raysplats.tools import exact_apply, region_editing
 
 SCENE = "small_sh3_inria.ply"  # 9,080 Gaussians, SH degree 3
 KEYS = ("positions", "rotations", "scales", "opacities", "sh")
@@ -23,7 +25,7 @@ ROUND_OFF = 1e-6
 FORMATS = (".ply", ".spz", ".splat", ".compressed.ply")
 
 needs_splat_point_clouds = unittest.skipUnless(
-    blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS,
+    compat.HAS_NATIVE_GAUSSIAN_SPLATS,
     f"Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3 on)")
 
 
@@ -81,10 +83,10 @@ class BlenderMadeSplatObject(unittest.TestCase):
         self.file = st.native().read_splats(st.data_file(SCENE))
 
     def test_is_a_splat_object_whose_up_axis_is_its_matrix(self):
-        self.assertTrue(compact_splats.is_compact_object(self.obj))
-        self.assertTrue(splat_transform.is_splat_object(self.obj))
-        self.assertEqual(native_splats.object_up_axis(self.obj), "Z")
-        assert_close(self, native_splats.read_native_splats(self.obj.data), self.file, "Blender's import")
+        self.assertTrue(compact_points.is_compact_object(self.obj))
+        self.assertTrue(splat_object.is_splat_object(self.obj))
+        self.assertEqual(splat_object.up_axis_of(self.obj), "Z")
+        assert_close(self, blender_splats.read_native_splats(self.obj.data), self.file, "Blender's import")
 
     def test_untouched_export_gives_the_files_values_in_every_format(self):
         # The add-on's own import of the file (compact points, the file's axes) exported the same way is the
@@ -146,37 +148,37 @@ class BlenderMadeSplatObject(unittest.TestCase):
         np.testing.assert_allclose(np.array(self.obj.matrix_world), np.eye(4), atol=1e-7)
         self.assertEqual((self.obj.type, self.obj.data.type), ("POINTCLOUD", "GAUSSIAN_SPLAT"))
         # The points now hold the mapped Gaussians (what Blender's own Apply leaves unchanged: scale and rotation).
-        assert_mapped(self, native_splats.read_native_splats(self.obj.data), self.file, matrix)
+        assert_mapped(self, blender_splats.read_native_splats(self.obj.data), self.file, matrix)
 
     def test_blenders_own_apply_is_reported(self):
         # Blender's Apply Transform moves the centres only (scale and rotation attributes as they were): the export
         # says so, and the exact Apply afterwards clears it.
-        from raysplats import io_export
+        from raysplats.io import export_splats
         place(self.obj, rotation=(0.0, 0.0, 0.5), scale=(2.0, 1.0, 0.5))
         select_only(self.obj)
         bpy.ops.object.transform_apply(location=False, rotation=True, scale=True)
-        warnings = io_export.export_gaussian_splats(bpy.context, st.tmp_file("blender_applied.ply"))[1]["warnings"]
+        warnings = export_splats.export_gaussian_splats(bpy.context, st.tmp_file("blender_applied.ply"))[1]["warnings"]
         self.assertEqual(len(warnings), 1)
         self.assertIn("Blender's Apply Transform moved only", warnings[0])
         self.assertEqual(bpy.ops.object.raysplats_apply_transform(), {"FINISHED"})
-        self.assertEqual(io_export.export_gaussian_splats(bpy.context, st.tmp_file("cleared.ply"))[1]["warnings"], [])
+        self.assertEqual(export_splats.export_gaussian_splats(bpy.context, st.tmp_file("cleared.ply"))[1]["warnings"], [])
 
     def test_a_region_edits_as_polygons_and_merges_back(self):
         place(self.obj)
         mask = self.file["positions"][:, 0] > 0.5
-        visible = mask & compact_splats.visible_gaussians(self.file["opacities"])
+        visible = mask & region_editing.visible_gaussians(self.file["opacities"])
         selection = self.obj.data.attributes.new(".selection", "BOOLEAN", "POINT")
         selection.data.foreach_set("value", mask)
-        before = native_splats.read_native_splats(self.obj.data)
+        before = blender_splats.read_native_splats(self.obj.data)
         select_only(self.obj)
         self.assertEqual(bpy.ops.object.raysplats_edit_region(), {"FINISHED"})
         region = bpy.context.view_layer.objects.active
-        self.assertTrue(gaussian_mesh.is_gaussian_object(region))
+        self.assertTrue(polygon_mesh.is_gaussian_object(region))
         self.assertEqual(len(region.data.polygons), int(visible.sum()))
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(mask) - int(visible.sum()))
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), len(mask) - int(visible.sum()))
         self.assertEqual(bpy.ops.object.raysplats_merge_region(), {"FINISHED"})
         self.assertIs(bpy.context.view_layer.objects.active, self.obj)
-        after = native_splats.read_native_splats(self.obj.data)
+        after = blender_splats.read_native_splats(self.obj.data)
         for key in KEYS:  # unedited polygons give back their points bit for bit
             np.testing.assert_array_equal(after[key], before[key], err_msg=key)
 
@@ -185,7 +187,7 @@ class BlenderMadeSplatObject(unittest.TestCase):
         select_only(self.obj)
         self.assertEqual(bpy.ops.object.raysplats_from_native_splats(), {"FINISHED"})
         ours = bpy.context.view_layer.objects.active
-        self.assertTrue(gaussian_mesh.is_gaussian_object(ours))
+        self.assertTrue(polygon_mesh.is_gaussian_object(ours))
         self.assertEqual(ours.raysplats.up_axis, "Z")
         select_only(ours)
         self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
@@ -215,7 +217,7 @@ class ImportAsBlenderSplats(unittest.TestCase):
                 values = {}
                 for obj in (ours, blender):
                     array = np.empty(count * width, np.float32)
-                    obj.data.attributes[name].data.foreach_get(blender_compat.ATTRIBUTE_VALUE_KEY[data_type], array)
+                    obj.data.attributes[name].data.foreach_get(compat.ATTRIBUTE_VALUE_KEY[data_type], array)
                     values[obj.name] = array
                 expected = values[blender.name]
                 np.testing.assert_allclose(values[ours.name], expected, rtol=0,
@@ -228,7 +230,7 @@ class ImportAsBlenderSplats(unittest.TestCase):
                 st.reset_scene()
                 obj = st.import_file(name, representation="POINTS", up_axis="Z", min_opacity=0.0)
                 self.assertEqual((obj.type, obj.data.type), ("POINTCLOUD", "GAUSSIAN_SPLAT"))
-                got = native_splats.read_native_splats(obj.data)
+                got = blender_splats.read_native_splats(obj.data)
                 expected = st.native().read_splats(st.data_file(name))
                 for key in KEYS:
                     np.testing.assert_array_equal(got[key], expected[key], err_msg=key)

@@ -8,7 +8,11 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import axes, compact_splats, io_import, native_splats
+from raysplats import native
+from raysplats.blender import compat
+from raysplats.io import import_policy
+from raysplats.objects import axes, blender_splats, compact_points
+from raysplats.tools import region_editing
 from raysplats.engine import sync
 
 SCENE = "small_sh3_inria.ply"  # 9,080 Gaussians, SH degree 3
@@ -37,10 +41,10 @@ class CompactImport(unittest.TestCase):
 
     def test_every_value_of_the_file_is_kept(self):
         obj = import_points()
-        self.assertTrue(compact_splats.is_compact_object(obj))
+        self.assertTrue(compact_points.is_compact_object(obj))
         self.assertEqual(len(bpy.data.meshes[obj.data.name].polygons) if obj.type == "MESH" else 0, 0)
         expected = st.native().read_splats(st.data_file(SCENE))
-        got = native_splats.read_native_splats(obj.data)
+        got = blender_splats.read_native_splats(obj.data)
         self.assertEqual(len(got["opacities"]), len(expected["opacities"]))  # the invisible ones too
         for key in KEYS:
             np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
@@ -104,29 +108,29 @@ class CompactImport(unittest.TestCase):
             def available_memory_bytes():
                 return (points + polygons) // 2
 
-        with mock.patch.object(io_import.native, "core", return_value=Machine()):
-            representation, needed, note = io_import.check_import_memory(Machine(), st.data_file(SCENE), 8, 0,
+        with mock.patch.object(native, "core", return_value=Machine()):
+            representation, needed, note = import_policy.check_import_memory(Machine(), st.data_file(SCENE), 8, 0,
                                                                          "AUTO")
             self.assertEqual((representation, needed), ("POINTS", points))
-            self.assertIn(f"imported as {io_import.POINTS_NAME.lower()}", note)
+            self.assertIn(f"imported as {import_policy.POINTS_NAME.lower()}", note)
             obj = st.import_file(SCENE)  # the operator's default is AUTO
-        self.assertTrue(compact_splats.is_compact_object(obj))
-        with self.assertRaisesRegex(io_import.NotEnoughMemory, f"import as {io_import.POINTS_NAME}"):
-            io_import.check_import_memory(Machine(), st.data_file(SCENE), 8, 0, "POLYGONS")
+        self.assertTrue(compact_points.is_compact_object(obj))
+        with self.assertRaisesRegex(import_policy.NotEnoughMemory, f"import as {import_policy.POINTS_NAME}"):
+            import_policy.check_import_memory(Machine(), st.data_file(SCENE), 8, 0, "POLYGONS")
 
 
 def shown(obj):
     """The Gaussians compact object `obj` shows (renders, exports), in object space."""
-    return compact_splats.object_cloud(obj)
+    return compact_points.object_cloud(obj)
 
 
 class RegionEditing(unittest.TestCase):
     def setUp(self):
         st.reset_scene()
         self.obj = import_points()
-        self.original = native_splats.read_native_splats(self.obj.data)
+        self.original = blender_splats.read_native_splats(self.obj.data)
         self.mask = self.original["positions"][:, 0] > 0.5
-        self.visible = self.mask & compact_splats.visible_gaussians(self.original["opacities"])
+        self.visible = self.mask & region_editing.visible_gaussians(self.original["opacities"])
 
     def assert_cloud_equal(self, got, expected):
         for key in KEYS:
@@ -134,34 +138,34 @@ class RegionEditing(unittest.TestCase):
 
     def test_a_region_becomes_polygons_and_merges_back_unchanged(self):
         data = self.obj.data
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         self.assertEqual(len(region.data.polygons), int(self.visible.sum()))
         # The points stay where they are, marked as the region's: the compact data is not rebuilt.
         self.assertIs(self.obj.data, data)
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), int((~self.visible).sum()))
+        self.assertEqual(compat.point_count(self.obj.data), len(self.mask))
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), int((~self.visible).sum()))
         if hasattr(self.obj.data, "vertices"):  # (a point cloud, 5.3 on, has no hiding)
             hidden = np.zeros(len(self.mask), dtype=bool)
             self.obj.data.vertices.foreach_get("hide", hidden)
             np.testing.assert_array_equal(hidden, self.visible)  # Edit Mode does not show the points out in the region
         bpy.context.view_layer.update()
         self.assertEqual(region.matrix_world, self.obj.matrix_world)  # the same place, to the last bit
-        self.assertIs(compact_splats.region_target(region), self.obj)
+        self.assertIs(region_editing.region_target(region), self.obj)
 
-        merged = compact_splats.merge_region_back(bpy.context, region)
+        merged = region_editing.merge_region_back(bpy.context, region)
         self.assertEqual(merged, int(self.visible.sum()))
         self.assertEqual([obj.name for obj in bpy.data.objects], [self.obj.name])  # the region object is gone
         self.assertIs(self.obj.data, data)
-        self.assertEqual(compact_splats.open_regions(self.obj), {})
+        self.assertEqual(region_editing.open_regions(self.obj), {})
         # Every point back where it was, bit for bit (unedited polygons return their stored values).
-        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
-        self.assertFalse(compact_splats.region_marks(self.obj.data).any())
+        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
+        self.assertFalse(compact_points.region_marks(self.obj.data).any())
         if hasattr(self.obj.data, "vertices"):
             self.obj.data.vertices.foreach_get("hide", hidden)
             self.assertFalse(hidden.any())
 
     def test_taken_points_are_skipped_by_render_and_export(self):
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         rest = {key: self.original[key][~self.visible] for key in KEYS}
         self.assert_cloud_equal(shown(self.obj), rest)
         scene_sync = sync.SceneSync(bpy.context.evaluated_depsgraph_get())
@@ -172,11 +176,11 @@ class RegionEditing(unittest.TestCase):
         self.assertEqual(len(written["opacities"]), len(self.mask))
 
     def test_a_moved_region_merges_back_where_it_is_seen(self):
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         region.location.x += 2.0  # world +X; the compact object's frame is rotated about X only, so its +X too
         bpy.context.view_layer.update()
-        compact_splats.merge_region_back(bpy.context, region)
-        cloud = native_splats.read_native_splats(self.obj.data)
+        region_editing.merge_region_back(bpy.context, region)
+        cloud = blender_splats.read_native_splats(self.obj.data)
         self.assertEqual(len(cloud["opacities"]), len(self.mask))  # in place: no point added or removed
         expected = self.original["positions"][self.visible] + np.array([2.0, 0.0, 0.0], dtype=np.float32)
         np.testing.assert_allclose(cloud["positions"][self.visible], expected, atol=1e-5)
@@ -198,10 +202,10 @@ class RegionEditing(unittest.TestCase):
 
     def test_deleted_faces_remove_their_points_and_duplicates_are_added(self):
         rows = np.flatnonzero(self.visible)
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         self._edit_region_faces(region, lambda: bpy.ops.mesh.delete(type="FACE"))
-        compact_splats.merge_region_back(bpy.context, region)
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))  # removed in place
+        region_editing.merge_region_back(bpy.context, region)
+        self.assertEqual(compat.point_count(self.obj.data), len(self.mask))  # removed in place
         keep = np.ones(len(self.mask), dtype=bool)
         keep[rows[:10]] = False
         self.assert_cloud_equal(shown(self.obj), {key: self.original[key][keep] for key in KEYS})
@@ -209,91 +213,91 @@ class RegionEditing(unittest.TestCase):
         self.assertEqual(len(written["opacities"]), int(keep.sum()))
 
         # A second region that duplicates 10 faces: they first fill the 10 points removed, nothing is appended.
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         self._edit_region_faces(region, lambda: bpy.ops.mesh.duplicate())
-        compact_splats.merge_region_back(bpy.context, region)
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask))
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask))
+        region_editing.merge_region_back(bpy.context, region)
+        self.assertEqual(compat.point_count(self.obj.data), len(self.mask))
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), len(self.mask))
         got = shown(self.obj)
         self.assert_cloud_equal({key: got[key][keep] for key in KEYS}, {key: self.original[key][keep] for key in KEYS})
         # The duplicates are copies of the region's first 10 (which were rows[10:20] of the original).
         np.testing.assert_array_equal(np.sort(got["opacities"][~keep]), np.sort(self.original["opacities"][rows[10:20]]))
 
         # A third duplicates 10 again: nothing free, so 10 points are appended.
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         self._edit_region_faces(region, lambda: bpy.ops.mesh.duplicate())
-        compact_splats.merge_region_back(bpy.context, region)
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.mask) + 10)
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask) + 10)
+        region_editing.merge_region_back(bpy.context, region)
+        self.assertEqual(compat.point_count(self.obj.data), len(self.mask) + 10)
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), len(self.mask) + 10)
 
     def test_taking_a_small_region_does_not_rebuild_the_compact_data(self):
         data, count = self.obj.data, len(self.mask)
         small = np.zeros(count, dtype=bool)
-        small[np.flatnonzero(compact_splats.visible_gaussians(self.original["opacities"]))[:50]] = True
+        small[np.flatnonzero(region_editing.visible_gaussians(self.original["opacities"]))[:50]] = True
         views = []
-        real = compact_splats._PointViews
+        real = region_editing._PointViews
 
         def recording(data):
             views.append(real(data))
             return views[-1]
 
-        with mock.patch.object(compact_splats.native_splats, "new_native_splat_data",
+        with mock.patch.object(blender_splats, "new_native_splat_data",
                                side_effect=AssertionError("rebuilt")), \
-                mock.patch.object(compact_splats.native_splats, "read_native_splats",
+                mock.patch.object(blender_splats, "read_native_splats",
                                   side_effect=AssertionError("read whole")), \
-                mock.patch.object(compact_splats, "_PointViews", side_effect=recording):
-            region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, small)
+                mock.patch.object(region_editing, "_PointViews", side_effect=recording):
+            region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, small)
             self.assertIs(self.obj.data, data)
-            self.assertEqual(compact_splats.point_count(data), count)
-            compact_splats.merge_region_back(bpy.context, region)
+            self.assertEqual(compat.point_count(data), count)
+            region_editing.merge_region_back(bpy.context, region)
         self.assertIs(self.obj.data, data)
-        self.assertEqual(compact_splats.point_count(data), count)
+        self.assertEqual(compat.point_count(data), count)
         # The values were read and written in Blender's arrays in place, not as whole copies.
         self.assertTrue(views)
         self.assertEqual([view.copies for view in views], [[]] * len(views))
-        self.assert_cloud_equal(native_splats.read_native_splats(data), self.original)
+        self.assert_cloud_equal(blender_splats.read_native_splats(data), self.original)
 
     def test_nothing_selected_is_a_clear_error_and_changes_nothing(self):
         with self.assertRaisesRegex(ValueError, "no splats selected"):
-            compact_splats.edit_region_as_polygons(bpy.context, self.obj, np.zeros_like(self.mask))
-        self.assertEqual(compact_splats.point_count(self.obj.data), len(self.original["opacities"]))
+            region_editing.edit_region_as_polygons(bpy.context, self.obj, np.zeros_like(self.mask))
+        self.assertEqual(compat.point_count(self.obj.data), len(self.original["opacities"]))
 
     def test_points_out_in_a_region_are_not_taken_again(self):
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         with self.assertRaisesRegex(ValueError, "out in a region already"):
-            compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.visible)
-        other, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, np.ones_like(self.mask))
+            region_editing.edit_region_as_polygons(bpy.context, self.obj, self.visible)
+        other, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, np.ones_like(self.mask))
         self.assertEqual(len(other.data.polygons),
-                         int((compact_splats.visible_gaussians(self.original["opacities"]) & ~self.mask).sum()))
-        compact_splats.merge_region_back(bpy.context, other)
-        compact_splats.merge_region_back(bpy.context, region)
-        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
+                         int((region_editing.visible_gaussians(self.original["opacities"]) & ~self.mask).sum()))
+        region_editing.merge_region_back(bpy.context, other)
+        region_editing.merge_region_back(bpy.context, region)
+        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
 
     def test_a_deleted_region_is_listed_and_restored(self):
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
-        region_id = region[compact_splats.REGION_ID_PROPERTY]
-        self.assertEqual(compact_splats.orphaned_regions(self.obj), [])
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region_id = region[region_editing.REGION_ID_PROPERTY]
+        self.assertEqual(region_editing.orphaned_regions(self.obj), [])
         bpy.data.objects.remove(region)
-        self.assertEqual(compact_splats.orphaned_regions(self.obj), [region_id])
+        self.assertEqual(region_editing.orphaned_regions(self.obj), [region_id])
         bpy.context.view_layer.objects.active = self.obj
         self.assertEqual(bpy.ops.object.raysplats_restore_regions(), {"FINISHED"})
-        self.assertEqual(compact_splats.orphaned_regions(self.obj), [])
+        self.assertEqual(region_editing.orphaned_regions(self.obj), [])
         self.assert_cloud_equal(shown(self.obj), self.original)
 
     def test_a_region_survives_save_and_reload(self):
-        region, _ = compact_splats.edit_region_as_polygons(bpy.context, self.obj, self.mask)
+        region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
         region.location.z += 1.0
         name, region_name = self.obj.name, region.name
         path = st.tmp_file("compact_region_open.blend")
         bpy.ops.wm.save_as_mainfile(filepath=path)
         bpy.ops.wm.open_mainfile(filepath=path)
         obj, region = bpy.data.objects[name], bpy.data.objects[region_name]
-        self.assertEqual(compact_splats.gaussian_count(obj.data), int((~self.visible).sum()))
-        self.assertEqual(compact_splats.orphaned_regions(obj), [])
-        compact_splats.merge_region_back(bpy.context, region)
-        cloud = native_splats.read_native_splats(obj.data)
+        self.assertEqual(compact_points.gaussian_count(obj.data), int((~self.visible).sum()))
+        self.assertEqual(region_editing.orphaned_regions(obj), [])
+        region_editing.merge_region_back(bpy.context, region)
+        cloud = blender_splats.read_native_splats(obj.data)
         self.assertEqual(len(cloud["opacities"]), len(self.mask))
-        self.assertEqual(compact_splats.gaussian_count(obj.data), len(self.mask))
+        self.assertEqual(compact_points.gaussian_count(obj.data), len(self.mask))
         for key in KEYS:
             np.testing.assert_array_equal(cloud[key][~self.visible], self.original[key][~self.visible], err_msg=key)
 
@@ -307,15 +311,15 @@ class RegionEditing(unittest.TestCase):
             self.obj.data.attributes.new(".selection", "BOOLEAN", "POINT").data.foreach_set("value", selection)
         self.assertEqual(bpy.ops.object.raysplats_edit_region(), {"FINISHED"})
         region = bpy.context.view_layer.objects.active
-        self.assertEqual(region.get(compact_splats.REGION_OF_PROPERTY), self.obj.name)
-        self.assertEqual(region.raysplats.vertices_per_polygon, compact_splats.REGION_VERTICES_PER_POLYGON)
-        visible = int(compact_splats.visible_gaussians(self.original["opacities"][:100]).sum())
+        self.assertEqual(region.get(region_editing.REGION_OF_PROPERTY), self.obj.name)
+        self.assertEqual(region.raysplats.vertices_per_polygon, region_editing.REGION_VERTICES_PER_POLYGON)
+        visible = int(region_editing.visible_gaussians(self.original["opacities"][:100]).sum())
         self.assertEqual(len(region.data.polygons), visible)
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask) - visible)
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), len(self.mask) - visible)
         self.assertEqual(bpy.ops.object.raysplats_merge_region(), {"FINISHED"})
         self.assertIs(bpy.context.view_layer.objects.active, self.obj)
-        self.assertEqual(compact_splats.gaussian_count(self.obj.data), len(self.mask))
-        self.assert_cloud_equal(native_splats.read_native_splats(self.obj.data), self.original)
+        self.assertEqual(compact_points.gaussian_count(self.obj.data), len(self.mask))
+        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
 
 
 class Rendering(unittest.TestCase):
@@ -323,7 +327,7 @@ class Rendering(unittest.TestCase):
         st.reset_scene()
         obj = import_points()
         scene_sync = sync.SceneSync(bpy.context.evaluated_depsgraph_get())
-        self.assertEqual(scene_sync.stats.splats, compact_splats.point_count(obj.data))
+        self.assertEqual(scene_sync.stats.splats, compat.point_count(obj.data))
 
 
 if __name__ == "__main__":

@@ -19,14 +19,14 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat
+from raysplats.blender import compat
 
 WIDTH, HEIGHT, SAMPLES = 96, 72, 1024
 BLOCKS = 4  # the image is split into BLOCKS x BLOCKS regions for the systematic-bias check
 
 
 # Multiple-scattering GGX is modelled for Principled v2 only.
-DISTRIBUTIONS = ("GGX",) if blender_compat.PRINCIPLED_VERSION == "V1" else ("GGX", "MULTI_GGX")
+DISTRIBUTIONS = ("GGX",) if compat.PRINCIPLED_VERSION == "V1" else ("GGX", "MULTI_GGX")
 
 
 def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.45, distribution="GGX"):

@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.blender_compat import TRANSFORM_ROTATE_SIGN
+from raysplats.blender.compat import TRANSFORM_ROTATE_SIGN
 
 SCENE = "small_sh3_inria.ply"
 EXACT_TOLERANCE = 1e-5
@@ -102,7 +102,7 @@ class Edits(unittest.TestCase):
         bpy.ops.object.mode_set(mode="OBJECT")
         exported = st.export_file("edit_transform.ply")
 
-        # transform.rotate's direction differs between Blender versions (blender_compat.TRANSFORM_ROTATE_SIGN).
+        # transform.rotate's direction differs between Blender versions (compat.TRANSFORM_ROTATE_SIGN).
         angle = TRANSFORM_ROTATE_SIGN * 0.7
         c, s = math.cos(angle), math.sin(angle)
         rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])

@@ -14,8 +14,12 @@ import bpy
 import mesh_export_testing as mt
 import splat_testing as st
 import raysplats
-from raysplats import errors, gaussian_mesh, material_reader
-from raysplats.engine import RaySplatsRenderEngine, final, viewport
+from raysplats.blender import material_reader
+from raysplats.io import import_splats
+from raysplats.objects import creation, polygon_mesh
+from raysplats import errors
+from raysplats.engine import final, viewport
+from raysplats.engine import RaySplatsRenderEngine
 
 SPLATS = "small.splat"
 INTERNAL = "RaySplats internal error — please report: "
@@ -45,7 +49,7 @@ class Operators(ReportTest):
         st.reset_scene()
 
     def test_import_internal_error_and_missing_file(self):
-        with mock.patch.object(gaussian_mesh, "fill_mesh", side_effect=KeyError("gs_opacity")):
+        with mock.patch.object(polygon_mesh, "fill_mesh", side_effect=KeyError("gs_opacity")):
             message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats,
                                                  filepath=st.data_file(SPLATS))
         self.assert_internal_error(message, stderr, "KeyError", "'gs_opacity'")
@@ -58,8 +62,8 @@ class Operators(ReportTest):
 
     def test_import_failure_after_the_mesh_is_filled_leaves_nothing_behind(self):
         # Before: a failure after fill_mesh (the material, the object, linking) left an orphan mesh and object.
-        from raysplats import io_import
-        for target, name in ((io_import.material, "gaussian_material"), (io_import.axes, "object_rotation_euler")):
+        from raysplats.io import import_policy
+        for target, name in ((creation.falloff_material, "gaussian_material"), (import_splats.axes, "object_rotation_euler")):
             with self.subTest(failing=name):
                 st.reset_scene()
                 meshes, objects = len(bpy.data.meshes), len(bpy.data.objects)
@@ -72,7 +76,8 @@ class Operators(ReportTest):
 
     def test_import_too_large_for_the_memory_is_refused_before_it_starts(self):
         # The machine's available memory made tiny: the operator says how much the import needs, reads nothing.
-        from raysplats import io_import, native
+        from raysplats.io import import_policy
+        from raysplats import native
         real = native.core()
 
         class SmallMachine:
@@ -89,16 +94,16 @@ class Operators(ReportTest):
 
         for representation, needed in (("POLYGONS", real.import_memory_bytes(22764, 0, 8)),
                                        ("AUTO", real.compact_import_memory_bytes(22764, 0))):  # (the smaller form)
-            with mock.patch.object(io_import.native, "core", return_value=SmallMachine()):
+            with mock.patch.object(native, "core", return_value=SmallMachine()):
                 message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats,
                                                      filepath=st.data_file(SPLATS), representation=representation)
             self.assert_user_error(message, stderr, "Import failed: ")
             self.assertIn(f"not enough memory to import 22,764 Gaussians (needs about "
-                          f"{io_import.memory_size_text(needed)}, 1 MB available)", message)
+                          f"{import_policy.memory_size_text(needed)}, 1 MB available)", message)
             self.assertEqual(len(bpy.data.meshes), 0)
         needed = real.import_memory_bytes(22764, 0, 8)
         # A std::bad_alloc during the import (the estimate too low) is reported the same way, not as a bug.
-        with mock.patch.object(gaussian_mesh, "fill_mesh", side_effect=MemoryError("std::bad_alloc")):
+        with mock.patch.object(polygon_mesh, "fill_mesh", side_effect=MemoryError("std::bad_alloc")):
             message, stderr = self.run_reporting(bpy.ops.import_scene.gaussian_splats, filepath=st.data_file(SPLATS))
         self.assert_user_error(message, stderr, "Import failed: ")
         self.assertIn("not enough memory to import the file's Gaussians (needs about", message)
@@ -111,7 +116,7 @@ class Operators(ReportTest):
 
     def test_splat_export_internal_error_and_user_error(self):
         st.import_file(SPLATS)
-        with mock.patch.object(gaussian_mesh, "recover_object_gaussians",
+        with mock.patch.object(polygon_mesh, "recover_object_gaussians",
                                side_effect=AssertionError("faces and attributes disagree")):
             message, stderr = self.run_reporting(bpy.ops.export_scene.gaussian_splats,
                                                  filepath=st.tmp_file("internal.ply"))
@@ -248,7 +253,7 @@ class Registration(unittest.TestCase):
         try:
             self.assertEqual(self.registered(), (False, False, False))
             # A late module fails (e.g. a class name another add-on took): every module before it is taken back.
-            with mock.patch.object(raysplats.splat_ui, "register", side_effect=ValueError("register_class(...): "
+            with mock.patch.object(raysplats.ui.panels, "register", side_effect=ValueError("register_class(...): "
                                                                                       "already registered")), \
                     self.assertRaisesRegex(ValueError, "already registered"):
                 raysplats.register()

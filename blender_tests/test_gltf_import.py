@@ -9,18 +9,19 @@ import numpy as np
 
 import mesh_export_testing as mt
 import splat_testing as st
-from raysplats import gaussian_mesh, io_import
+from raysplats.io import format_table
+from raysplats.objects import polygon_mesh
 
 DONUT = "donut_sh0.ply"  # a Blender-made object: Z up in its file
 
 
 def world_gaussians(obj):
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    return gaussian_mesh.recover_object_gaussians(st.native(), obj, depsgraph, np.array(obj.matrix_world, np.float64))
+    return polygon_mesh.recover_object_gaussians(st.native(), obj, depsgraph, np.array(obj.matrix_world, np.float64))
 
 
 def gaussian_objects():
-    return [obj for obj in bpy.data.objects if gaussian_mesh.is_gaussian_object(obj)]
+    return [obj for obj in bpy.data.objects if polygon_mesh.is_gaussian_object(obj)]
 
 
 class GltfImport(unittest.TestCase):
@@ -92,8 +93,8 @@ class GltfImport(unittest.TestCase):
             bpy.ops.export_scene.gaussian_splats(filepath=st.tmp_file("splats.glb"))
         self.assertIn("File > Export > RaySplats Mesh", str(raised.exception))
         self.assertFalse(os.path.exists(st.tmp_file("splats.glb")))
-        self.assertNotIn(".glb", io_import.splat_file_browser_filter(writable_only=True))
-        self.assertIn(".glb", io_import.splat_file_browser_filter())
+        self.assertNotIn(".glb", format_table.splat_file_browser_filter(writable_only=True))
+        self.assertIn(".glb", format_table.splat_file_browser_filter())
 
 
 class AutomaticUpAxis(unittest.TestCase):

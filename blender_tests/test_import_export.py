@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import axes
+from raysplats.objects import axes
 
 # (file, splats, SH degree) as documented in shared/data/README.md, and how many of the splats have an opacity
 # below 1/255 (invisible: the import skips them, docs/design.md §5).

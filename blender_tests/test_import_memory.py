@@ -9,7 +9,9 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat, gaussian_mesh, io_import, mesh_memory
+from raysplats.blender import compat, mesh_memory
+from raysplats.io import import_policy, import_splats
+from raysplats.objects import creation, polygon_mesh
 
 BIG = "showroom_1.5M.ply"  # 1,495,636 Gaussians, SH degree 0
 SMALL = "donut_sh0.ply"    # 45,624 Gaussians, SH degree 0
@@ -22,22 +24,22 @@ TARGET_BYTES_PER_GAUSSIAN = 700
 def expected_layers(faces, k, sh_degree):
     """{name: (domain, bytes)} of a Gaussian mesh of `faces` K-gons as this Blender stores it."""
     corners = faces * k
-    if blender_compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:  # 3.6+: position float3, edge int2, corner vertex and edge int32
+    if compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:  # 3.6+: position float3, edge int2, corner vertex and edge int32
         layers = {"vertices": ("POINT", 12 * corners), "edges": ("EDGE", 8 * corners),
                   "corners": ("CORNER", 4 * corners), ".corner_edge": ("CORNER", 4 * corners),
                   "faces": ("FACE", 4 * (faces + 1))}
     else:  # 3.4: MVert 16, MEdge 12, MLoop 8, MPoly 12 bytes
         layers = {"vertices": ("POINT", 16 * corners), "edges": ("EDGE", 12 * corners),
                   "corners": ("CORNER", 8 * corners), "faces": ("FACE", 12 * faces)}
-    layers.update({gaussian_mesh.ATTR_OPACITY: ("FACE", 4 * faces),
-                   gaussian_mesh.ATTR_REST_CENTER: ("FACE", 12 * faces),
-                   gaussian_mesh.ATTR_REST_ROTATION: ("FACE", 16 * faces),
-                   gaussian_mesh.ATTR_REST_SCALE: ("FACE", 12 * faces),
-                   gaussian_mesh.ATTR_COLOR: ("CORNER", 4 * corners),
+    layers.update({polygon_mesh.ATTR_OPACITY: ("FACE", 4 * faces),
+                   polygon_mesh.ATTR_REST_CENTER: ("FACE", 12 * faces),
+                   polygon_mesh.ATTR_REST_ROTATION: ("FACE", 16 * faces),
+                   polygon_mesh.ATTR_REST_SCALE: ("FACE", 12 * faces),
+                   polygon_mesh.ATTR_COLOR: ("CORNER", 4 * corners),
                    # 3.5+ a float2 attribute; 3.4 MLoopUV {float uv[2]; int flag;}
-                   gaussian_mesh.UV_MAP: ("CORNER", (8 if blender_compat.UV_MAPS_ARE_ATTRIBUTES else 12) * corners)})
+                   polygon_mesh.UV_MAP: ("CORNER", (8 if compat.UV_MAPS_ARE_ATTRIBUTES else 12) * corners)})
     for k_sh in range((sh_degree + 1) ** 2):
-        layers[gaussian_mesh.sh_attribute_name(k_sh)] = ("FACE", 12 * faces)
+        layers[polygon_mesh.sh_attribute_name(k_sh)] = ("FACE", 12 * faces)
     return layers
 
 
@@ -53,7 +55,7 @@ class ImportMemory(unittest.TestCase):
         bpy.ops.import_scene.gaussian_splats(filepath=path)  # the defaults
         peak = mesh_memory.process_memory_bytes("VmHWM") - before
         active = bpy.context.view_layer.objects.active
-        pieces = gaussian_mesh.scene_pieces(active.parent)  # Auto: 6 M vertices are split into pieces
+        pieces = polygon_mesh.scene_pieces(active.parent)  # Auto: 6 M vertices are split into pieces
         self.assertGreater(len(pieces), 10)
         count = sum(len(piece.data.polygons) for piece in pieces)
         self.assertGreater(count, 1_000_000)
@@ -76,16 +78,16 @@ class ImportMemory(unittest.TestCase):
     def test_auto_polygon_vertices_are_8_up_to_a_million_gaussians_and_4_above(self):
         core = st.native()
         path = st.data_file(BIG)
-        self.assertEqual(io_import.auto_vertices_per_polygon(1_000_000), 8)
-        self.assertEqual(io_import.auto_vertices_per_polygon(1_000_001), 4)
-        self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 0), 4)
-        self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 0, max_count=1_000_000), 8)
-        self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 0, max_count=1_000_001), 4)
-        self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 8), 8)  # explicit K is kept
-        self.assertEqual(io_import.resolve_vertices_per_polygon(core, path, 6, max_count=10), 6)
+        self.assertEqual(creation.auto_vertices_per_polygon(1_000_000), 8)
+        self.assertEqual(creation.auto_vertices_per_polygon(1_000_001), 4)
+        self.assertEqual(import_policy.resolve_vertices_per_polygon(core, path, 0), 4)
+        self.assertEqual(import_policy.resolve_vertices_per_polygon(core, path, 0, max_count=1_000_000), 8)
+        self.assertEqual(import_policy.resolve_vertices_per_polygon(core, path, 0, max_count=1_000_001), 4)
+        self.assertEqual(import_policy.resolve_vertices_per_polygon(core, path, 8), 8)  # explicit K is kept
+        self.assertEqual(import_policy.resolve_vertices_per_polygon(core, path, 6, max_count=10), 6)
         for impossible in (1, 2):  # (the operator's range starts at 0, Auto): a clear error, not the core's
             with self.assertRaisesRegex(ValueError, f"Polygon Vertices {impossible}: a polygon needs at least 3"):
-                io_import.resolve_vertices_per_polygon(core, path, impossible)
+                import_policy.resolve_vertices_per_polygon(core, path, impossible)
         # The operator's default is Auto.
         self.assertEqual(bpy.ops.import_scene.gaussian_splats.get_rna_type().properties["vertices_per_polygon"].default,
                          0)
@@ -101,22 +103,22 @@ class ImportMemory(unittest.TestCase):
                 faces = len(mesh.polygons)
                 self.assertEqual(len(mesh.loops), expected_k * faces)
                 self.assertEqual(mesh_memory.layer_sizes(mesh), expected_layers(faces, expected_k, 0))
-                color = mesh.color_attributes[gaussian_mesh.ATTR_COLOR]
+                color = mesh.color_attributes[polygon_mesh.ATTR_COLOR]
                 self.assertEqual((color.data_type, color.domain), ("BYTE_COLOR", "CORNER"))
                 self.assertFalse([a.name for a in mesh.attributes if a.data_type == "FLOAT_COLOR"
                                   and a.domain == "CORNER"])
-                for name in blender_compat.MESH_SELECTION_ATTRIBUTES + (gaussian_mesh.ATTR_THICKNESS,
-                                                                         gaussian_mesh.ATTR_RADIUS):
+                for name in compat.MESH_SELECTION_ATTRIBUTES + (polygon_mesh.ATTR_THICKNESS,
+                                                                         polygon_mesh.ATTR_RADIUS):
                     self.assertNotIn(name, mesh.attributes)
 
     def test_byte_colours_show_the_float_colours_to_8_bits(self):
         st.reset_scene()
         cloud = st.native().read_splats(st.data_file(SMALL), max_count=2000)
         keep = cloud["opacities"].astype(np.float64) * 255.0 > 1.0
-        obj, _, _ = io_import.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=2000, up_axis="-Y")
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=2000, up_axis="-Y")
         mesh = obj.data
         colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
-        mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", colors)
+        mesh.color_attributes[polygon_mesh.ATTR_COLOR].data.foreach_get("color", colors)
         colors = colors.reshape(-1, 8, 4)[:, 0, :]
         display = np.clip(0.5 + st.C0 * cloud["sh"][keep][:, 0, :].astype(np.float64), 0, 1)
         # Blender's .color is linear: the sRGB byte decoded. The byte is the display value rounded, so the decoded
@@ -128,7 +130,7 @@ class ImportMemory(unittest.TestCase):
 
     def test_nothing_is_selected_after_an_import(self):
         st.reset_scene()
-        obj, _, _ = io_import.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=500)
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=500)
         bpy.context.view_layer.objects.active = obj
         bpy.ops.object.mode_set(mode="EDIT")
         bpy.ops.object.mode_set(mode="OBJECT")
@@ -149,7 +151,7 @@ class ImportMemory(unittest.TestCase):
         self.assertIn("corner_colors", arrays)
         self.assertEqual(polygons["corner_colors"].dtype, np.uint8)
         mesh = bpy.data.meshes.new("filled")
-        gaussian_mesh.fill_mesh(mesh, polygons)
+        polygon_mesh.fill_mesh(mesh, polygons)
         self.assertFalse({key for key, value in polygons.items() if isinstance(value, np.ndarray)})
         self.assertEqual(len(mesh.polygons), len(cloud["opacities"]) - int((cloud["opacities"] * 255.0 <= 1.0).sum()))
         bpy.data.meshes.remove(mesh)
@@ -159,19 +161,19 @@ class ImportMemory(unittest.TestCase):
         # that name (files from before byte colours) becomes a byte one.
         from unittest import mock
         st.reset_scene()
-        obj, _, _ = io_import.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=500)
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, st.data_file(SMALL), max_count=500)
         mesh = obj.data
         corners = len(mesh.loops)
         in_place = np.empty(4 * corners, dtype=np.float32)
-        mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", in_place)
-        mesh.color_attributes.remove(mesh.color_attributes[gaussian_mesh.ATTR_COLOR])
-        mesh.color_attributes.new(gaussian_mesh.ATTR_COLOR, "FLOAT_COLOR", "CORNER")
+        mesh.color_attributes[polygon_mesh.ATTR_COLOR].data.foreach_get("color", in_place)
+        mesh.color_attributes.remove(mesh.color_attributes[polygon_mesh.ATTR_COLOR])
+        mesh.color_attributes.new(polygon_mesh.ATTR_COLOR, "FLOAT_COLOR", "CORNER")
         rgba8 = np.round(in_place.reshape(-1, 4) * 255).astype(np.uint8)  # (any bytes will do)
-        with mock.patch.object(gaussian_mesh, "write_bytes_in_place", return_value=False):
-            gaussian_mesh.write_corner_colors(mesh, rgba8)
-        color = mesh.color_attributes[gaussian_mesh.ATTR_COLOR]
+        with mock.patch.object(polygon_mesh, "write_bytes_in_place", return_value=False):
+            polygon_mesh.write_corner_colors(mesh, rgba8)
+        color = mesh.color_attributes[polygon_mesh.ATTR_COLOR]
         self.assertEqual((color.data_type, color.domain), ("BYTE_COLOR", "CORNER"))
-        self.assertEqual(mesh.color_attributes.active_color.name, gaussian_mesh.ATTR_COLOR)
+        self.assertEqual(mesh.color_attributes.active_color.name, polygon_mesh.ATTR_COLOR)
         written = np.empty(4 * corners, dtype=np.float32)
         color.data.foreach_get("color", written)
         np.testing.assert_allclose(written.reshape(-1, 4), st.native().srgb8_to_linear(rgba8), atol=1e-6)

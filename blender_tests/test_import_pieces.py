@@ -1,4 +1,4 @@
-# A scene imported in spatial pieces (io_import.add_gaussian_pieces): one Gaussian object per piece under
+# A scene imported in spatial pieces (creation.add_gaussian_pieces): one Gaussian object per piece under
 # one empty that carries the scene's transform. The pieces together are the file (the same Gaussians as a one-object
 # import, exported and rendered alike), each piece is a compact box of space, the empty moves them all, Tab edits them
 # all, Export Selected with only the empty selected writes them all, and a failed import leaves nothing behind.
@@ -9,7 +9,8 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import export_scope, gaussian_mesh, io_import
+from raysplats.io import export_scope, import_policy, import_splats
+from raysplats.objects import creation, polygon_mesh
 
 SCENE = "unicorn_sh3_reordered.ply"  # 49,602 Gaussians, SH degree 3
 PIECE = 10_000  # -> 5 pieces
@@ -25,7 +26,7 @@ def rows_by_position(cloud):
 def import_pieces(**options):
     st.import_file(SCENE, up_axis="-Y", objects="PIECES", piece_size=PIECE, **options)
     root = bpy.context.view_layer.objects.active.parent
-    return root, gaussian_mesh.scene_pieces(root)
+    return root, polygon_mesh.scene_pieces(root)
 
 
 class ImportPieces(unittest.TestCase):
@@ -33,15 +34,15 @@ class ImportPieces(unittest.TestCase):
         st.reset_scene()
 
     def test_auto_splits_only_meshes_above_one_and_a_half_million_vertices(self):
-        self.assertEqual(io_import.gaussians_per_piece("AUTO", 152_746, 8), 152_746)  # biker_v4: one object
-        self.assertEqual(io_import.gaussians_per_piece("AUTO", 187_500, 8), 187_500)  # 1.5 M vertices
-        self.assertEqual(io_import.gaussians_per_piece("AUTO", 187_501, 8), 50_000)
-        self.assertEqual(io_import.gaussians_per_piece("AUTO", 1_495_636, 4), 100_000)  # showroom: 15 pieces
-        self.assertEqual(io_import.gaussians_per_piece("ONE", 1_495_636, 4), 1_495_636)
-        self.assertEqual(io_import.gaussians_per_piece("PIECES", 49_602, 8), 50_000)
-        self.assertEqual(io_import.gaussians_per_piece("PIECES", 49_602, 8, piece_size=7), 7)
+        self.assertEqual(import_policy.gaussians_per_piece("AUTO", 152_746, 8), 152_746)  # biker_v4: one object
+        self.assertEqual(import_policy.gaussians_per_piece("AUTO", 187_500, 8), 187_500)  # 1.5 M vertices
+        self.assertEqual(import_policy.gaussians_per_piece("AUTO", 187_501, 8), 50_000)
+        self.assertEqual(import_policy.gaussians_per_piece("AUTO", 1_495_636, 4), 100_000)  # showroom: 15 pieces
+        self.assertEqual(import_policy.gaussians_per_piece("ONE", 1_495_636, 4), 1_495_636)
+        self.assertEqual(import_policy.gaussians_per_piece("PIECES", 49_602, 8), 50_000)
+        self.assertEqual(import_policy.gaussians_per_piece("PIECES", 49_602, 8, piece_size=7), 7)
         with self.assertRaisesRegex(ValueError, "unknown Objects choice 'HALF'"):
-            io_import.gaussians_per_piece("HALF", 10, 8)
+            import_policy.gaussians_per_piece("HALF", 10, 8)
         self.assertEqual(bpy.ops.import_scene.gaussian_splats.get_rna_type().properties["objects"].default, "AUTO")
 
     def test_pieces_hold_the_file_under_one_empty_and_are_boxes_of_space(self):
@@ -126,7 +127,7 @@ class ImportPieces(unittest.TestCase):
         self.assertEqual(len(cloud["opacities"]), sum(len(p.data.polygons) for p in pieces))
 
     def test_a_failed_import_leaves_no_piece_no_empty_and_no_mesh(self):
-        fill = gaussian_mesh.fill_mesh
+        fill = polygon_mesh.fill_mesh
         calls = []
 
         def fill_then_fail(mesh, polygons):
@@ -136,9 +137,9 @@ class ImportPieces(unittest.TestCase):
             fill(mesh, polygons)
 
         objects, meshes = len(bpy.data.objects), len(bpy.data.meshes)
-        with mock.patch.object(gaussian_mesh, "fill_mesh", fill_then_fail):
-            with self.assertRaises(io_import.NotEnoughMemory):
-                io_import.import_gaussian_splats(bpy.context, st.data_file(SCENE), objects="PIECES",
+        with mock.patch.object(polygon_mesh, "fill_mesh", fill_then_fail):
+            with self.assertRaises(import_policy.NotEnoughMemory):
+                import_splats.import_gaussian_splats(bpy.context, st.data_file(SCENE), objects="PIECES",
                                                  piece_size=PIECE)
         self.assertEqual(len(calls), 3)
         self.assertEqual((len(bpy.data.objects), len(bpy.data.meshes)), (objects, meshes))

@@ -10,7 +10,9 @@ import unittest
 import bpy
 
 import splat_testing as st
-from raysplats import blender_compat, gaussian_mesh, io_import, material
+from raysplats.blender import compat
+from raysplats.objects import falloff_material, polygon_mesh
+from raysplats.ui import solid_view
 
 SCENE = "small_sh3_inria.ply"
 
@@ -31,7 +33,7 @@ class ImportViewportShading(unittest.TestCase):
     def test_material_needs_no_sorting(self):
         obj = st.import_file(SCENE)
         gaussian_material = obj.data.materials[0]
-        self.assertEqual(gaussian_material.name, material.MATERIAL_NAME)
+        self.assertEqual(gaussian_material.name, falloff_material.MATERIAL_NAME)
         if bpy.app.version >= (4, 2, 0):
             self.assertEqual(gaussian_material.surface_render_method, "DITHERED")
             self.assertTrue(gaussian_material.use_transparent_shadow)
@@ -54,9 +56,9 @@ class ImportViewportShading(unittest.TestCase):
     def test_solid_views_show_the_splat_colour(self):
         obj = st.import_file(SCENE)
         # Solid's "Attribute" colour draws the active colour attribute: it must be the splat colour.
-        self.assertEqual(obj.data.color_attributes.active_color.name, gaussian_mesh.ATTR_COLOR)
+        self.assertEqual(obj.data.color_attributes.active_color.name, polygon_mesh.ATTR_COLOR)
         for space in view3d_spaces():
-            self.assertEqual(space.shading.color_type, blender_compat.SOLID_COLOR_TYPE_ATTRIBUTE)
+            self.assertEqual(space.shading.color_type, compat.SOLID_COLOR_TYPE_ATTRIBUTE)
 
     def test_option_off_keeps_the_solid_colour(self):
         st.import_file(SCENE, color_solid_views=False)
@@ -68,10 +70,10 @@ class ImportViewportShading(unittest.TestCase):
         # As if the object had been imported into a scene that no window shows.
         other_scene = types.SimpleNamespace(scene=bpy.data.scenes.new("Other"),
                                             window_manager=bpy.context.window_manager)
-        self.assertEqual(io_import.show_splat_colors_in_solid_views(other_scene, obj), 0)
+        self.assertEqual(solid_view.show_splat_colors_in_solid_views(other_scene, obj), 0)
         for space in view3d_spaces():
             self.assertEqual(space.shading.color_type, "MATERIAL")
-        self.assertEqual(io_import.show_splat_colors_in_solid_views(bpy.context, obj), len(view3d_spaces()))
+        self.assertEqual(solid_view.show_splat_colors_in_solid_views(bpy.context, obj), len(view3d_spaces()))
 
     def test_import_without_a_screen(self):
         # No window, hence no screen (overriding screen=None as well crashes bpy 4.2 itself).
@@ -81,4 +83,4 @@ class ImportViewportShading(unittest.TestCase):
         self.assertEqual(len(obj.data.polygons), 9080)
         # A script's own context may have no window manager at all: nothing to switch, no error.
         headless = types.SimpleNamespace(scene=bpy.context.scene, window_manager=None)
-        self.assertEqual(io_import.show_splat_colors_in_solid_views(headless, obj), 0)
+        self.assertEqual(solid_view.show_splat_colors_in_solid_views(headless, obj), 0)

@@ -11,7 +11,7 @@ import numpy as np
 
 import mesh_export_testing as mt
 import splat_testing as st
-from raysplats.engine.materials import MaterialTable
+from raysplats.engine.material_table import MaterialTable
 
 RED, GREEN = (1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0)
 

@@ -1,4 +1,4 @@
-# Reading a Gaussian mesh back (gaussian_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop and face
+# Reading a Gaussian mesh back (polygon_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop and face
 # arrays in place) give exactly what Blender's own foreach_get gives, after edits of the positions and of the
 # topology, on empty meshes, and through the foreach_get fallback when the loop or face layout is not the expected one.
 import unittest
@@ -9,13 +9,14 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat, gaussian_mesh, mesh_fast_read
+from raysplats.blender import compat, mesh_read
+from raysplats.objects import polygon_mesh
 
 SCENE = "donut_sh0.ply"
 # How each Blender reads when nothing is wrong: positions are the "position" attribute from 3.5 on, corner vertices
 # the ".corner_vert" attribute from 3.6 on; before, MLoop structs read in place.
-POSITIONS_PATH = "attribute" if blender_compat.MESH_POSITIONS_ARE_AN_ATTRIBUTE else "foreach_get"
-CORNERS_PATH = "attribute" if blender_compat.MESH_TOPOLOGY_IN_INT32_ARRAYS else "pointer"
+POSITIONS_PATH = "attribute" if compat.MESH_POSITIONS_ARE_AN_ATTRIBUTE else "foreach_get"
+CORNERS_PATH = "attribute" if compat.MESH_TOPOLOGY_IN_INT32_ARRAYS else "pointer"
 FACES_PATH = "pointer"  # MPoly structs before 3.6, the face offsets from then on, in place
 
 
@@ -56,9 +57,9 @@ class MeshRead(unittest.TestCase):
         st.reset_scene()
 
     def tearDown(self):
-        mesh_fast_read._loop_layout_failed = False
-        mesh_fast_read._face_layout_failed = False
-        mesh_fast_read._bmesh_layout_failed = False
+        mesh_read._loop_layout_failed = False
+        mesh_read._face_layout_failed = False
+        mesh_read._bmesh_layout_failed = False
         if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
 
@@ -72,20 +73,20 @@ class MeshRead(unittest.TestCase):
             self.assertEqual(actual.shape, wanted.shape, name)
             self.assertTrue(np.array_equal(actual, wanted), name)
         positions = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        self.assertEqual(mesh_fast_read.read_vertex_positions(mesh, positions), positions_path)
+        self.assertEqual(mesh_read.read_vertex_positions(mesh, positions), positions_path)
         self.assertTrue(np.array_equal(positions, expected[0].ravel()))
-        corners = np.empty(len(mesh.loops), dtype=blender_compat.MESH_INDEX_DTYPE)
-        self.assertEqual(mesh_fast_read.read_corner_vertices(mesh, corners), corners_path)
+        corners = np.empty(len(mesh.loops), dtype=compat.MESH_INDEX_DTYPE)
+        self.assertEqual(mesh_read.read_corner_vertices(mesh, corners), corners_path)
         self.assertTrue(np.array_equal(corners, expected[1]))
         starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
-        self.assertEqual(mesh_fast_read.read_face_corners(mesh, sizes, starts), faces_path)
+        self.assertEqual(mesh_read.read_face_corners(mesh, sizes, starts), faces_path)
         self.assertTrue(np.array_equal(starts, expected[2]) and np.array_equal(sizes, expected[3]))
         return expected
 
     def test_fast_reads_equal_foreach_get_after_moving_flipping_and_deleting_faces(self):
         obj = st.import_file(SCENE)
         faces = len(obj.data.polygons)
-        first = gaussian_mesh.mesh_arrays(evaluated_mesh(obj))
+        first = polygon_mesh.mesh_arrays(evaluated_mesh(obj))
         self.assert_reads_like_foreach_get(evaluated_mesh(obj), first)
 
         # Vertex positions change (the corners of face 10 move), read as the viewport does: into the arrays of an
@@ -96,7 +97,7 @@ class MeshRead(unittest.TestCase):
         obj.data.vertices.foreach_set("co", co)
         obj.data.update()
         spare = tuple(np.copy(a) for a in first)
-        moved = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), spare, first)
+        moved = polygon_mesh.mesh_arrays(evaluated_mesh(obj), spare, first)
         self.assert_reads_like_foreach_get(evaluated_mesh(obj), moved)
         self.assertFalse(np.array_equal(moved[0], first[0]))
         self.assertTrue(all(np.shares_memory(new, old) for new, old in zip(moved[:2], spare[:2])))
@@ -105,29 +106,29 @@ class MeshRead(unittest.TestCase):
         # Every 5th face's corners reversed: the corners are no longer 0, 1, 2, ... as after the import, so a read of
         # the wrong values or of the arrays from before the edit would show.
         edit_faces(obj, range(0, faces, 5), bpy.ops.mesh.flip_normals)
-        flipped = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), first, moved)
+        flipped = polygon_mesh.mesh_arrays(evaluated_mesh(obj), first, moved)
         expected = self.assert_reads_like_foreach_get(evaluated_mesh(obj), flipped)
         self.assertFalse(np.array_equal(expected[1], moved[1]))
         self.assertTrue(np.array_equal(np.sort(expected[1][:8]), moved[1][:8]))
 
         # A face deleted: every array changes size.
         edit_faces(obj, [3], lambda: bpy.ops.mesh.delete(type="FACE"))
-        deleted = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), moved, flipped)
+        deleted = polygon_mesh.mesh_arrays(evaluated_mesh(obj), moved, flipped)
         self.assert_reads_like_foreach_get(evaluated_mesh(obj), deleted)
         self.assertEqual(len(deleted[3]), faces - 1)
 
         # Faces 20 and 21 triangulated: faces of 3 corners among those of 8, so the starts no longer step by 8.
         edit_faces(obj, [20, 21], lambda: bpy.ops.mesh.quads_convert_to_tris(ngon_method="BEAUTY"))
-        triangulated = gaussian_mesh.mesh_arrays(evaluated_mesh(obj), flipped, deleted)
+        triangulated = polygon_mesh.mesh_arrays(evaluated_mesh(obj), flipped, deleted)
         expected = self.assert_reads_like_foreach_get(evaluated_mesh(obj), triangulated)
         self.assertEqual(len(triangulated[3]), faces - 1 + 2 * 5)
         self.assertEqual(set(expected[3].tolist()), {3, 8})
 
     def test_evaluated_geometry_is_read_from_the_datablock_only_where_evaluation_leaves_it_as_is(self):
-        """mesh_fast_read.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
+        """mesh_read.evaluated_mesh: before 3.6 an object that evaluation leaves as it is reads from its
         evaluated Mesh datablock (no copy); one with shape keys, a modifier or a deforming parent from its evaluated
         mesh. Either way what is read is the evaluated mesh's geometry and attributes, also right after an edit."""
-        shortcut = blender_compat.EVALUATED_MESH_COPIES_ON_READ
+        shortcut = compat.EVALUATED_MESH_COPIES_ON_READ
         obj = st.import_file(SCENE)
         original = foreach_get_arrays(obj.data)[0]
 
@@ -136,13 +137,13 @@ class MeshRead(unittest.TestCase):
             bpy.context.view_layer.update()
             depsgraph = bpy.context.evaluated_depsgraph_get()
             evaluated = obj.evaluated_get(depsgraph)
-            mesh = mesh_fast_read.evaluated_mesh(evaluated, depsgraph)
-            arrays = gaussian_mesh.mesh_arrays(mesh)
-            attributes = gaussian_mesh.face_attributes(mesh, 0)
+            mesh = mesh_read.evaluated_mesh(evaluated, depsgraph)
+            arrays = polygon_mesh.mesh_arrays(mesh)
+            attributes = polygon_mesh.face_attributes(mesh, 0)
             for actual, wanted in zip(arrays, foreach_get_arrays(evaluated.data)):
                 self.assertTrue(np.array_equal(actual, wanted))
             opacities = np.empty(len(evaluated.data.polygons), dtype=np.float32)
-            evaluated.data.attributes[gaussian_mesh.ATTR_OPACITY].data.foreach_get("value", opacities)
+            evaluated.data.attributes[polygon_mesh.ATTR_OPACITY].data.foreach_get("value", opacities)
             self.assertTrue(np.array_equal(attributes["opacity"], opacities))
             # (From 5.3 on an object that evaluation leaves as it is has its evaluated datablock as its evaluated
             # mesh: read from the evaluated mesh, that is the datablock too, and is no shortcut.)
@@ -156,7 +157,7 @@ class MeshRead(unittest.TestCase):
         co = original.copy()
         co[80:88] += (0.0, 0.0, 0.05)
         obj.data.vertices.foreach_set("co", co.ravel())
-        obj.data.attributes[gaussian_mesh.ATTR_OPACITY].data[7].value = 0.02
+        obj.data.attributes[polygon_mesh.ATTR_OPACITY].data[7].value = 0.02
         obj.data.update()
         from_datablock, positions, opacities = read()
         self.assertEqual(from_datablock, shortcut)
@@ -192,7 +193,7 @@ class MeshRead(unittest.TestCase):
 
     def test_empty_meshes(self):
         empty = bpy.data.meshes.new("empty")
-        arrays = gaussian_mesh.mesh_arrays(empty)
+        arrays = polygon_mesh.mesh_arrays(empty)
         self.assertEqual([a.shape for a in arrays], [(0, 3), (0,), (0,), (0,)])
         self.assert_reads_like_foreach_get(empty, arrays, "foreach_get", "foreach_get", "foreach_get")
         # One corner: too few to check the loop array's layout against (foreach_get reads it), which is no reason
@@ -202,14 +203,14 @@ class MeshRead(unittest.TestCase):
         single.loops.add(1)
         single.polygons.add(1)
         single.polygons[0].loop_start = 0
-        if blender_compat.FACE_CORNER_COUNT_IS_WRITABLE:
+        if compat.FACE_CORNER_COUNT_IS_WRITABLE:
             single.polygons[0].loop_total = 1
-        arrays = gaussian_mesh.mesh_arrays(single)
+        arrays = polygon_mesh.mesh_arrays(single)
         self.assertEqual([a.shape for a in arrays], [(1, 3), (1,), (1,), (1,)])
         self.assert_reads_like_foreach_get(single, arrays, POSITIONS_PATH,
                                            "attribute" if CORNERS_PATH == "attribute" else "foreach_get", "foreach_get")
         obj = st.import_file(SCENE)
-        self.assert_reads_like_foreach_get(obj.data, gaussian_mesh.mesh_arrays(obj.data))
+        self.assert_reads_like_foreach_get(obj.data, polygon_mesh.mesh_arrays(obj.data))
 
     def test_foreach_get_reads_when_the_loop_layout_check_fails(self):
         obj = st.import_file(SCENE)
@@ -220,24 +221,24 @@ class MeshRead(unittest.TestCase):
         expected = foreach_get_arrays(mesh)[1]
 
         def read():
-            corners = np.empty(len(mesh.loops), dtype=blender_compat.MESH_INDEX_DTYPE)
-            path = mesh_fast_read.read_corner_vertices(mesh, corners)
+            corners = np.empty(len(mesh.loops), dtype=compat.MESH_INDEX_DTYPE)
+            path = mesh_read.read_corner_vertices(mesh, corners)
             self.assertTrue(np.array_equal(corners, expected), path)
             return path
 
         # The loop array in place is also what 4.x reads when the attribute is missing.
-        with mock.patch.object(blender_compat, "MESH_CORNER_VERTEX_ATTRIBUTE", "no such attribute"):
+        with mock.patch.object(compat, "MESH_CORNER_VERTEX_ATTRIBUTE", "no such attribute"):
             self.assertEqual(read(), "pointer")
-            with mock.patch.object(blender_compat, "LOOP_STRIDE", blender_compat.LOOP_STRIDE + 4):
+            with mock.patch.object(compat, "LOOP_STRIDE", compat.LOOP_STRIDE + 4):
                 self.assertEqual(read(), "foreach_get")
             self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
-            mesh_fast_read._loop_layout_failed = False
+            mesh_read._loop_layout_failed = False
             self.assertEqual(read(), "pointer")
             # The vertex index looked for 4 bytes into each element: 3.x's MLoop.e, which only the spot checks
             # catch (the stride is right); on 4.x past the 4-byte element.
-            with mock.patch.object(blender_compat, "LOOP_VERTEX_OFFSET", 4):
+            with mock.patch.object(compat, "LOOP_VERTEX_OFFSET", 4):
                 self.assertEqual(read(), "foreach_get")
-            self.assertTrue(mesh_fast_read._loop_layout_failed)
+            self.assertTrue(mesh_read._loop_layout_failed)
 
     def test_foreach_get_reads_when_the_face_layout_check_fails(self):
         obj = st.import_file(SCENE)
@@ -248,45 +249,45 @@ class MeshRead(unittest.TestCase):
 
         def read():
             starts, sizes = (np.empty(len(mesh.polygons), dtype=np.int32) for _ in range(2))
-            path = mesh_fast_read.read_face_corners(mesh, sizes, starts)
+            path = mesh_read.read_face_corners(mesh, sizes, starts)
             self.assertTrue(np.array_equal(starts, expected[0]) and np.array_equal(sizes, expected[1]), path)
             return path
 
         self.assertEqual(read(), "pointer")
-        with mock.patch.object(blender_compat, "FACE_STRIDE", blender_compat.FACE_STRIDE + 4):
+        with mock.patch.object(compat, "FACE_STRIDE", compat.FACE_STRIDE + 4):
             self.assertEqual(read(), "foreach_get")
         self.assertEqual(read(), "foreach_get")  # this Blender's layout failed once: not tried again
-        mesh_fast_read._face_layout_failed = False
+        mesh_read._face_layout_failed = False
         self.assertEqual(read(), "pointer")
         # The face's size looked for in the wrong field: 3.x's MPoly.loopstart, which only the spot checks catch (the
         # stride is right); from 3.6 on the offsets themselves taken for sizes.
-        with mock.patch.object(blender_compat, "FACE_SIZE_OFFSET", 0):
+        with mock.patch.object(compat, "FACE_SIZE_OFFSET", 0):
             self.assertEqual(read(), "foreach_get")
-        self.assertTrue(mesh_fast_read._face_layout_failed)
-        mesh_fast_read._face_layout_failed = False
+        self.assertTrue(mesh_read._face_layout_failed)
+        mesh_read._face_layout_failed = False
         # The first corner looked for 4 bytes in: 3.x's MPoly.totloop, past the 4-byte element from 3.6 on.
-        with mock.patch.object(blender_compat, "FACE_START_OFFSET", 4):
+        with mock.patch.object(compat, "FACE_START_OFFSET", 4):
             self.assertEqual(read(), "foreach_get")
 
     def test_edit_mode_positions_are_read_from_the_bmesh_while_the_faces_stay_as_they_were(self):
-        """mesh_fast_read.read_edit_mode_positions reads Edit Mode positions in place from the BMesh: exactly what
+        """mesh_read.read_edit_mode_positions reads Edit Mode positions in place from the BMesh: exactly what
         Blender's own conversion (to_mesh) gives after a move, "topology" once faces were reversed, deleted or added,
-        and "unavailable" (never a wrong read) when the BMesh is not laid out as blender_compat says."""
+        and "unavailable" (never a wrong read) when the BMesh is not laid out as compat says."""
         obj = st.import_file(SCENE)
-        topology = gaussian_mesh.mesh_arrays(obj.data)[1:]
+        topology = polygon_mesh.mesh_arrays(obj.data)[1:]
         bpy.context.view_layer.objects.active = obj
         bpy.ops.object.mode_set(mode="EDIT")
 
         def read(arrays=topology):
             positions = np.full((len(bmesh.from_edit_mesh(obj.data).verts), 3), np.nan, dtype=np.float32)
-            return mesh_fast_read.read_edit_mode_positions(obj.data, positions, *arrays), positions
+            return mesh_read.read_edit_mode_positions(obj.data, positions, *arrays), positions
 
         def converted():
             """Positions and topology as Blender's conversion of the edit mesh gives them."""
             bpy.context.view_layer.update()
             evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
             try:
-                return tuple(np.copy(a) for a in gaussian_mesh.mesh_arrays(evaluated.to_mesh()))
+                return tuple(np.copy(a) for a in polygon_mesh.mesh_arrays(evaluated.to_mesh()))
             finally:
                 evaluated.to_mesh_clear()
 
@@ -309,12 +310,12 @@ class MeshRead(unittest.TestCase):
         self.assertEqual(int(np.any(moved != positions, axis=1).sum()), 3 * 8)
         # The layout checked wrongly (a BMVert's position looked for 4 bytes off): nothing is read, and the reader is
         # not tried again; the caller converts the mesh instead.
-        mesh_fast_read._bmesh_checked.clear()
-        layout = dict(blender_compat.BMESH_LAYOUT, vert_co=blender_compat.BMESH_LAYOUT["vert_co"] + 4)
-        with mock.patch.object(blender_compat, "BMESH_LAYOUT", layout):
+        mesh_read._bmesh_checked.clear()
+        layout = dict(compat.BMESH_LAYOUT, vert_co=compat.BMESH_LAYOUT["vert_co"] + 4)
+        with mock.patch.object(compat, "BMESH_LAYOUT", layout):
             self.assertEqual(read()[0], "unavailable")
         self.assertEqual(read()[0], "unavailable")
-        mesh_fast_read._bmesh_layout_failed = False
+        mesh_read._bmesh_layout_failed = False
         self.assertEqual(read()[0], "read")
         # Corners reversed (same counts), a face deleted, faces added: the topology differs from the caller's.
         bpy.ops.mesh.flip_normals()
@@ -333,4 +334,4 @@ class MeshRead(unittest.TestCase):
         self.assertTrue(np.array_equal(positions, converted()[0]))
         bpy.ops.object.mode_set(mode="OBJECT")
         positions = np.empty((len(obj.data.vertices), 3), dtype=np.float32)
-        self.assertEqual(mesh_fast_read.read_edit_mode_positions(obj.data, positions, *topology), "unavailable")
+        self.assertEqual(mesh_read.read_edit_mode_positions(obj.data, positions, *topology), "unavailable")

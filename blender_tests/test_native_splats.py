@@ -7,7 +7,8 @@ import unittest
 import bpy
 import numpy as np
 
-from raysplats import blender_compat, gaussian_mesh, native_splats
+from raysplats.blender import compat
+from raysplats.objects import blender_splats, polygon_mesh
 from splat_testing import covariances, data_file, native, relative_errors, reset_scene
 
 SH_REST = 15  # degree 3: 15 coefficients beyond the DC term
@@ -16,7 +17,7 @@ SH_REST = 15  # degree 3: 15 coefficients beyond the DC term
 def world_gaussians(obj):
     """The Gaussians of our object `obj` in world coordinates (the core's dict)."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    return gaussian_mesh.recover_object_gaussians(native(), obj, depsgraph, np.array(obj.matrix_world, np.float64))
+    return polygon_mesh.recover_object_gaussians(native(), obj, depsgraph, np.array(obj.matrix_world, np.float64))
 
 
 def select_only(obj):
@@ -30,7 +31,7 @@ def attribute_values(data, name, count):
     attribute = data.attributes[name]
     width = {"FLOAT_VECTOR": 3, "FLOAT_COLOR": 4, "QUATERNION": 4, "FLOAT4": 4}[attribute.data_type]
     values = np.empty(count * width, np.float32)
-    attribute.data.foreach_get(blender_compat.ATTRIBUTE_VALUE_KEY[attribute.data_type], values)
+    attribute.data.foreach_get(compat.ATTRIBUTE_VALUE_KEY[attribute.data_type], values)
     return values.reshape((count, width))
 
 
@@ -57,11 +58,11 @@ class HandMadeSplatCloud(unittest.TestCase):
 
         def add(name, data_type, values):
             attribute = mesh.attributes.new(name, data_type, "POINT")
-            attribute.data.foreach_set(blender_compat.ATTRIBUTE_VALUE_KEY[data_type], values.astype(np.float32).ravel())
+            attribute.data.foreach_set(compat.ATTRIBUTE_VALUE_KEY[data_type], values.astype(np.float32).ravel())
 
         add("scale", "FLOAT_VECTOR", self.scales)
-        add("rotation", blender_compat.QUATERNION_ATTRIBUTE_TYPE, self.rotations)
-        add("radiance:base", blender_compat.FLOAT4_ATTRIBUTE_TYPE,
+        add("rotation", compat.QUATERNION_ATTRIBUTE_TYPE, self.rotations)
+        add("radiance:base", compat.FLOAT4_ATTRIBUTE_TYPE,
             np.concatenate([self.sh[:, 0, :], self.opacities[:, None]], axis=1))
         for k in range(SH_REST):
             add(f"radiance:sh_{k}", "FLOAT_VECTOR", self.sh[:, k + 1, :])
@@ -72,20 +73,20 @@ class HandMadeSplatCloud(unittest.TestCase):
         self.splats.scale = (2.0, 2.0, 2.0)
 
     def test_converts_to_a_gaussian_object_with_the_same_gaussians(self):
-        self.assertTrue(native_splats.is_native_splat_object(self.splats))
+        self.assertTrue(blender_splats.is_native_splat_object(self.splats))
         select_only(self.splats)
         bpy.context.view_layer.update()  # matrix_world follows location/rotation/scale on evaluation
         matrix = np.array(self.splats.matrix_world)
         self.assertEqual(bpy.ops.object.raysplats_from_native_splats(), {"FINISHED"})
         obj = bpy.context.active_object
-        self.assertTrue(gaussian_mesh.is_gaussian_object(obj))
-        self.assertNotIn("hand made", [o.name for o in bpy.data.objects if not gaussian_mesh.is_gaussian_object(o)],
+        self.assertTrue(polygon_mesh.is_gaussian_object(obj))
+        self.assertNotIn("hand made", [o.name for o in bpy.data.objects if not polygon_mesh.is_gaussian_object(o)],
                          "the splat object should be replaced (Keep Original is off)")
         np.testing.assert_allclose(np.array(obj.matrix_world), matrix, atol=1e-6)
         self.assertEqual(obj.raysplats.sh_degree, 3)
         # In object space the Gaussians are the hand-made ones: the scales were taken as linear, the quaternions as
         # w x y z, radiance:base as SH DC + opacity and radiance:sh_k as coefficient k + 1.
-        ours = gaussian_mesh.recover_object_gaussians(native(), obj, bpy.context.evaluated_depsgraph_get(), np.eye(4))
+        ours = polygon_mesh.recover_object_gaussians(native(), obj, bpy.context.evaluated_depsgraph_get(), np.eye(4))
         expected = {"rotations": self.rotations, "scales": self.scales}
         np.testing.assert_allclose(ours["positions"], self.positions, atol=1e-5)
         self.assertLess(relative_errors(covariances(ours), covariances(expected)).max(), 1e-4)
@@ -96,7 +97,7 @@ class HandMadeSplatCloud(unittest.TestCase):
         plain = bpy.data.objects.new("plain", bpy.data.meshes.new("plain"))
         bpy.context.scene.collection.objects.link(plain)
         plain.data.vertices.add(3)
-        self.assertFalse(native_splats.is_native_splat_object(plain))
+        self.assertFalse(blender_splats.is_native_splat_object(plain))
         select_only(plain)
         self.assertFalse(bpy.ops.object.raysplats_from_native_splats.poll())
 
@@ -118,13 +119,13 @@ class RoundTrip(unittest.TestCase):
         select_only(obj)
         self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
         splats = bpy.context.active_object
-        self.assertTrue(native_splats.is_native_splat_object(splats))
+        self.assertTrue(blender_splats.is_native_splat_object(splats))
         data = splats.data
-        self.assertEqual(native_splats._point_count(data), count)
+        self.assertEqual(compat.point_count(data), count)
         # The layout Blender 5.3 renders: names and types.
         self.assertEqual(data.attributes["scale"].data_type, "FLOAT_VECTOR")
-        self.assertEqual(data.attributes["rotation"].data_type, blender_compat.QUATERNION_ATTRIBUTE_TYPE)
-        self.assertEqual(data.attributes["radiance:base"].data_type, blender_compat.FLOAT4_ATTRIBUTE_TYPE)
+        self.assertEqual(data.attributes["rotation"].data_type, compat.QUATERNION_ATTRIBUTE_TYPE)
+        self.assertEqual(data.attributes["radiance:base"].data_type, compat.FLOAT4_ATTRIBUTE_TYPE)
         self.assertEqual(sorted(a.name for a in data.attributes if a.name.startswith("radiance:sh_")),
                          sorted(f"radiance:sh_{k}" for k in range(SH_REST)))
         # radiance:base holds the SH DC coefficient itself (not a colour) and the opacity, in object space.
@@ -138,7 +139,7 @@ class RoundTrip(unittest.TestCase):
         select_only(splats)
         self.assertEqual(bpy.ops.object.raysplats_from_native_splats(), {"FINISHED"})
         back = bpy.context.active_object
-        self.assertTrue(gaussian_mesh.is_gaussian_object(back))
+        self.assertTrue(polygon_mesh.is_gaussian_object(back))
         self.assertEqual(back.raysplats.up_axis, "-Y", "the export up axis of the original should come back")
         after = world_gaussians(back)
         scene_size = np.abs(before["positions"]).max()

@@ -10,7 +10,8 @@ import numpy as np
 
 import mesh_export_testing as mt
 import splat_testing as st
-from raysplats import gaussian_mesh, io_import
+from raysplats.io import import_splats
+from raysplats.objects import polygon_mesh
 from raysplats.engine import sync
 
 DONUT = "donut_sh0.ply"      # 1518 of its 45624 Gaussians are below 1/255
@@ -34,7 +35,7 @@ def import_scene(name):
     st.reset_scene()
     # The camera framings below were chosen with the donut lying face-on to -Y, as the -Y convention imports it (the
     # automatic up axis stands it Z up, as it was made).
-    obj, warnings, _ = io_import.import_gaussian_splats(bpy.context, st.data_file(name), up_axis="-Y")
+    obj, warnings, _ = import_splats.import_gaussian_splats(bpy.context, st.data_file(name), up_axis="-Y")
     return obj, warnings
 
 
@@ -55,23 +56,23 @@ class PolygonRadius(unittest.TestCase):
         self.assertEqual(len(mesh.polygons), 45624 - 1518)
         self.assertIn("1,518 Gaussian(s) with opacity below 1/255 (invisible) not imported", warnings)
         # (Kept in the UV map, not in a gs_radius attribute: face_attributes reads it from there.)
-        self.assertNotIn(gaussian_mesh.ATTR_RADIUS, mesh.attributes)
-        radius = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
+        self.assertNotIn(polygon_mesh.ATTR_RADIUS, mesh.attributes)
+        radius = polygon_mesh.face_attributes(mesh, 0)["polygon_radius"]
         expected = mt.visible_radius(cloud["opacities"].astype(np.float64))
         np.testing.assert_allclose(radius, expected, rtol=1e-6)
         self.assertGreater(int((radius < 3.0).sum()), 10000)
         # Corners: UV = local polygon coordinate (|uv| = rho_i), colour alpha = opacity, so the material's
         # a·exp(-|uv|²/2) falls to 1/255 on the rim of every faint face.
         uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
-        mesh.uv_layers[gaussian_mesh.UV_MAP].data.foreach_get("uv", uvs)
+        mesh.uv_layers[polygon_mesh.UV_MAP].data.foreach_get("uv", uvs)
         uv_radius = np.linalg.norm(uvs.reshape(-1, K, 2).astype(np.float64), axis=2)
         np.testing.assert_allclose(uv_radius, np.repeat(expected[:, None], K, axis=1), rtol=1e-6)
         colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
-        mesh.color_attributes[gaussian_mesh.ATTR_COLOR].data.foreach_get("color", colors)
+        mesh.color_attributes[polygon_mesh.ATTR_COLOR].data.foreach_get("color", colors)
         alpha = colors.reshape(-1, K, 4)[:, :, 3].astype(np.float64)
         # (The colour is a byte colour attribute: its alpha is the opacity to half a byte step.)
         np.testing.assert_allclose(alpha, np.repeat(cloud["opacities"][:, None], K, axis=1), atol=0.5 / 255 + 1e-6)
-        rim = face_values(mesh, gaussian_mesh.ATTR_OPACITY)[:, None] * np.exp(-0.5 * uv_radius ** 2)
+        rim = face_values(mesh, polygon_mesh.ATTR_OPACITY)[:, None] * np.exp(-0.5 * uv_radius ** 2)
         np.testing.assert_allclose(rim[expected < 3.0], 1.0 / 255.0, rtol=1e-5)
         self.assertTrue(np.all(rim >= (1.0 / 255.0) * (1 - 1e-5)))
 
@@ -103,17 +104,17 @@ class PolygonRadius(unittest.TestCase):
         rho = obj.raysplats.radius
         mesh = obj.data
         opacities = visible(st.native().read_splats(st.data_file(DONUT)))["opacities"].astype(np.float64)
-        from_uvs = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
+        from_uvs = polygon_mesh.face_attributes(mesh, 0)["polygon_radius"]
         np.testing.assert_allclose(from_uvs, mt.visible_radius(opacities), rtol=1e-6)
-        stored = mesh.attributes.new(gaussian_mesh.ATTR_RADIUS, "FLOAT", "FACE")
+        stored = mesh.attributes.new(polygon_mesh.ATTR_RADIUS, "FLOAT", "FACE")
         stored.data.foreach_set("value", np.where(np.arange(len(mesh.polygons)) % 2 == 0, 2.0, 0.0).astype(np.float32))
-        combined = gaussian_mesh.face_attributes(mesh, 0)["polygon_radius"]
+        combined = polygon_mesh.face_attributes(mesh, 0)["polygon_radius"]
         np.testing.assert_array_equal(combined[0::2], 2.0)
         np.testing.assert_array_equal(combined[1::2], from_uvs[1::2])
-        mesh.attributes.remove(mesh.attributes[gaussian_mesh.ATTR_RADIUS])
-        mesh.uv_layers.remove(mesh.uv_layers[gaussian_mesh.UV_MAP])
+        mesh.attributes.remove(mesh.attributes[polygon_mesh.ATTR_RADIUS])
+        mesh.uv_layers.remove(mesh.uv_layers[polygon_mesh.UV_MAP])
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        attributes = gaussian_mesh.face_attributes(obj.evaluated_get(depsgraph).data, obj.raysplats.sh_degree)
+        attributes = polygon_mesh.face_attributes(obj.evaluated_get(depsgraph).data, obj.raysplats.sh_degree)
         self.assertIsNone(attributes["polygon_radius"])
         square = np.array([[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0]], dtype=np.float32)
         core = st.native()

@@ -12,7 +12,8 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat, gaussian_mesh, mesh_fast_read
+from raysplats.blender import compat, mesh_read
+from raysplats.objects import polygon_mesh
 
 DONUT = "donut_sh0.ply"
 
@@ -122,7 +123,7 @@ class RenderEngine(unittest.TestCase):
         self.assertFalse(np.isnan(ground).any())
 
         l0_expected = albedo * irradiance * math.cos(theta) / math.pi
-        if blender_compat.PRINCIPLED_VERSION == "V1":
+        if compat.PRINCIPLED_VERSION == "V1":
             # Principled v1's diffuse (Cycles' principled diffuse, roughness 1, seen along the normal):
             # (1 - FL / 2) + RR FL, FL = (1 - cos theta)^5, RR = roughness (1 + cos theta).
             fl = (1.0 - math.cos(theta)) ** 5
@@ -437,7 +438,7 @@ class RenderEngine(unittest.TestCase):
         faces = len(splats.data.polygons)
         uid = splats.as_pointer()
         changes, reads = [], []
-        reader = mesh_fast_read.read_edit_mode_positions
+        reader = mesh_read.read_edit_mode_positions
 
         def counted_reader(*args):
             reads.append(reader(*args))
@@ -451,7 +452,7 @@ class RenderEngine(unittest.TestCase):
         def converted_positions():
             evaluated = splats.evaluated_get(bpy.context.evaluated_depsgraph_get())
             try:
-                return gaussian_mesh.mesh_arrays(evaluated.to_mesh())[0].copy()
+                return polygon_mesh.mesh_arrays(evaluated.to_mesh())[0].copy()
             finally:
                 evaluated.to_mesh_clear()
 
@@ -470,7 +471,7 @@ class RenderEngine(unittest.TestCase):
         before = image(live)
         bpy.app.handlers.depsgraph_update_post.append(handler)
         try:
-            with mock.patch.object(mesh_fast_read, "read_edit_mode_positions", side_effect=counted_reader):
+            with mock.patch.object(mesh_read, "read_edit_mode_positions", side_effect=counted_reader):
                 bpy.ops.object.mode_set(mode="EDIT")
                 bpy.context.tool_settings.mesh_select_mode = (False, False, True)
                 move((10, 11, 12, 400), (0.0, 0.0, 0.03))
@@ -546,10 +547,10 @@ def updating_live_and_whole(live, whole, changes):
 
 def fresh_sync():
     """An interactive SceneSync built from scratch from the current depsgraph, reading every Gaussian object from its
-    evaluated mesh (not through mesh_fast_read.evaluated_mesh's datablock shortcut, whose reads it checks)."""
+    evaluated mesh (not through mesh_read.evaluated_mesh's datablock shortcut, whose reads it checks)."""
     from unittest import mock
     from raysplats.engine import sync
-    with mock.patch.object(blender_compat, "EVALUATED_MESH_COPIES_ON_READ", False):
+    with mock.patch.object(compat, "EVALUATED_MESH_COPIES_ON_READ", False):
         return sync.SceneSync(bpy.context.evaluated_depsgraph_get(), interactive=True)
 
 

@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.blender_compat import use_multilayer_exr
+from raysplats.blender.compat import use_multilayer_exr
 
 
 def _read_exr_header(data, pos):

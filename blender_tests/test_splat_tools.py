@@ -109,13 +109,13 @@ class ExportLimit(unittest.TestCase):
         self.assertEqual(len(st.export_file("excluded.ply")["opacities"]), self.donut_count)
 
     def test_mesh_export_leaves_hidden_objects_out(self):
-        from raysplats import io_mesh_export
+        from raysplats.io import export_mesh
         path = st.tmp_file("visible.glb")
-        everything = io_mesh_export.export_mesh_file(bpy.context, path)["gaussians"]
+        everything = export_mesh.export_mesh_file(bpy.context, path)["gaussians"]
         self.assertEqual(everything, self.donut_count + self.unicorn_count)
         self.donut.hide_set(True)
-        self.assertEqual(io_mesh_export.export_mesh_file(bpy.context, path)["gaussians"], self.unicorn_count)
-        self.assertEqual(io_mesh_export.export_mesh_file(bpy.context, path, limit_to="RENDERABLE")["gaussians"],
+        self.assertEqual(export_mesh.export_mesh_file(bpy.context, path)["gaussians"], self.unicorn_count)
+        self.assertEqual(export_mesh.export_mesh_file(bpy.context, path, limit_to="RENDERABLE")["gaussians"],
                          self.donut_count + self.unicorn_count)
 
 
@@ -302,7 +302,8 @@ class CleanUpAndColors(unittest.TestCase):
 
     def test_render_sync_applies_the_adjustments(self):
         from raysplats.engine import sync
-        from raysplats import gaussian_mesh, native
+        from raysplats.objects import polygon_mesh
+        from raysplats import native
         self.obj.raysplats.exposure = 1.0
         depsgraph = bpy.context.evaluated_depsgraph_get()
         scene_sync = sync.SceneSync(depsgraph)
@@ -310,7 +311,7 @@ class CleanUpAndColors(unittest.TestCase):
         cloud = scene_sync._recover(self.obj, source)
         np.testing.assert_allclose(cloud["sh"][:, 1:, :].std(), 2.0 * source.attributes["sh_local"][:, 1:, :].std(),
                                    rtol=1e-5)
-        self.assertIsNotNone(gaussian_mesh and native)
+        self.assertIsNotNone(polygon_mesh and native)
 
 
 def covariances_and_colors(cloud, directions):
@@ -360,25 +361,25 @@ class ExactApplyTransform(unittest.TestCase):
         with self.assertRaises(AssertionError):
             self.assert_same_gaussians(st.export_file("blender_applied.ply"), reference, 2e-4)
         # ... and the export says so; the exact operator afterwards clears it.
-        from raysplats import io_export
-        warnings = io_export.export_gaussian_splats(bpy.context, st.tmp_file("warned.ply"))[1]["warnings"]
+        from raysplats.io import export_splats
+        warnings = export_splats.export_gaussian_splats(bpy.context, st.tmp_file("warned.ply"))[1]["warnings"]
         self.assertEqual(len(warnings), 1)
         self.assertIn("Blender's Apply Transform moved only", warnings[0])
         bpy.ops.object.raysplats_apply_transform()
-        self.assertEqual(io_export.export_gaussian_splats(bpy.context, st.tmp_file("clear.ply"))[1]["warnings"], [])
+        self.assertEqual(export_splats.export_gaussian_splats(bpy.context, st.tmp_file("clear.ply"))[1]["warnings"], [])
 
     def test_blenders_own_apply_of_a_rotation_is_exact_and_not_reported(self):
-        from raysplats import io_export
+        from raysplats.io import export_splats
         self.obj.rotation_euler = Euler((0.3, 0.4, 0.5))
         self.obj.scale = (2.0, 2.0, 2.0)
         bpy.context.view_layer.update()
         reference = st.export_file("rotated.ply")
         bpy.ops.object.transform_apply(location=False, rotation=True, scale=True)
         self.assert_same_gaussians(st.export_file("rotation_applied.ply"), reference, 2e-4)
-        self.assertEqual(io_export.export_gaussian_splats(bpy.context, st.tmp_file("quiet.ply"))[1]["warnings"], [])
+        self.assertEqual(export_splats.export_gaussian_splats(bpy.context, st.tmp_file("quiet.ply"))[1]["warnings"], [])
 
     def test_sheared_world_matrix_baked(self):
-        from raysplats import splat_transform
+        from raysplats.tools import exact_apply
         parent = bpy.data.objects.new("Stretch", None)
         bpy.context.scene.collection.objects.link(parent)
         parent.scale = (1.0, 2.5, 0.6)
@@ -389,7 +390,7 @@ class ExactApplyTransform(unittest.TestCase):
         linear = world[:3, :3]
         self.assertGreater(abs(np.dot(linear[:, 0], linear[:, 1])), 0.1)  # the columns are not orthogonal
         reference = st.export_file("sheared.ply")
-        splat_transform.bake_matrix_into_gaussians(self.obj, world)
+        exact_apply.bake_matrix_into_gaussians(self.obj, world)
         self.obj.parent = None
         self.obj.matrix_basis = Matrix.Identity(4)
         bpy.context.view_layer.update()
@@ -398,22 +399,22 @@ class ExactApplyTransform(unittest.TestCase):
 
 class TopologyWarnings(unittest.TestCase):
     def test_decimate_is_named_once_in_export_and_render(self):
-        from raysplats import io_export, io_mesh_export
+        from raysplats.io import export_mesh, export_splats
         from raysplats.engine import sync
         st.reset_scene()
         obj = st.import_file(DONUT, max_count=2000)
         obj.modifiers.new("Fewer", "DECIMATE")
         obj.modifiers.new("Bend", "SIMPLE_DEFORM")  # a deformation: exact, not reported
-        _, stats, _ = io_export.export_gaussian_splats(bpy.context, st.tmp_file("decimated.ply"))
+        _, stats, _ = export_splats.export_gaussian_splats(bpy.context, st.tmp_file("decimated.ply"))
         self.assertEqual(len(stats["warnings"]), 1)
         self.assertIn("'Fewer' (Decimate)", stats["warnings"][0])
-        mesh_stats = io_mesh_export.export_mesh_file(bpy.context, st.tmp_file("decimated.glb"))
+        mesh_stats = export_mesh.export_mesh_file(bpy.context, st.tmp_file("decimated.glb"))
         self.assertEqual(sum("'Fewer'" in w for w in mesh_stats["warnings"]), 1)
         warnings = []
         sync.build_render_scene(bpy.context.evaluated_depsgraph_get(), warn=warnings.append)
         self.assertEqual(sum("'Fewer' (Decimate)" in w for w in warnings), 1)
         obj.modifiers["Fewer"].show_viewport = False
-        self.assertEqual(io_export.export_gaussian_splats(bpy.context, st.tmp_file("plain.ply"))[1]["warnings"], [])
+        self.assertEqual(export_splats.export_gaussian_splats(bpy.context, st.tmp_file("plain.ply"))[1]["warnings"], [])
 
 
 class Dialogs(unittest.TestCase):
@@ -432,20 +433,20 @@ class Dialogs(unittest.TestCase):
         self.assertEqual(bpy.context.view_layer.objects.active.name, "small")
 
     def test_add_menu_and_format_extensions(self):
-        from raysplats import io_import, io_mesh_export
-        self.assertIn(io_import.menu_add, bpy.types.VIEW3D_MT_add._dyn_ui_initialize())
-        self.assertEqual(io_mesh_export.with_extension("/a/scene.glb", ".obj", io_mesh_export.MESH_EXTENSIONS),
+        from raysplats.io import export_mesh, format_table, import_splats
+        self.assertIn(import_splats.menu_add, bpy.types.VIEW3D_MT_add._dyn_ui_initialize())
+        self.assertEqual(export_mesh.with_extension("/a/scene.glb", ".obj", export_mesh.MESH_EXTENSIONS),
                          "/a/scene.obj")
-        self.assertEqual(io_mesh_export.with_extension("/a/scene.v2", ".ply", io_mesh_export.MESH_EXTENSIONS),
+        self.assertEqual(export_mesh.with_extension("/a/scene.v2", ".ply", export_mesh.MESH_EXTENSIONS),
                          "/a/scene.v2.ply")
         # A two-dot splat extension is replaced whole, both ways (by the core's endings); a read-only one is kept.
-        self.assertEqual(io_import.with_splat_extension("/a/scene.compressed.ply", ".spz"), "/a/scene.spz")
-        self.assertEqual(io_import.with_splat_extension("/a/scene.ply", ".compressed.ply"), "/a/scene.compressed.ply")
-        self.assertEqual(io_import.with_splat_extension("/a/Scene.SPZ", ".ply"), "/a/Scene.ply")
-        self.assertEqual(io_import.with_splat_extension("/a/scene.sog", ".ply"), "/a/scene.sog.ply")
-        self.assertEqual(io_import.splat_format_of("/a/S.Compressed.PLY")["name"], "compressed_ply")
-        self.assertEqual(io_import.splat_format_of("/a/s.ply")["name"], "ply")
-        self.assertEqual(io_mesh_export.mesh_format_of("x.GLTF"), "GLTF")
+        self.assertEqual(format_table.with_splat_extension("/a/scene.compressed.ply", ".spz"), "/a/scene.spz")
+        self.assertEqual(format_table.with_splat_extension("/a/scene.ply", ".compressed.ply"), "/a/scene.compressed.ply")
+        self.assertEqual(format_table.with_splat_extension("/a/Scene.SPZ", ".ply"), "/a/Scene.ply")
+        self.assertEqual(format_table.with_splat_extension("/a/scene.sog", ".ply"), "/a/scene.sog.ply")
+        self.assertEqual(format_table.splat_format_of("/a/S.Compressed.PLY")["name"], "compressed_ply")
+        self.assertEqual(format_table.splat_format_of("/a/s.ply")["name"], "ply")
+        self.assertEqual(export_mesh.mesh_format_of("x.GLTF"), "GLTF")
 
 
 class MirroredColour(unittest.TestCase):

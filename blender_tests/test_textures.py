@@ -19,12 +19,12 @@ import mathutils
 import numpy as np
 
 import splat_testing as st
-from raysplats import blender_compat
+from raysplats.blender import compat
 
 CELLS, TEXELS_PER_CELL, PIXELS = 4, 4, 64
 SIZE = CELLS * TEXELS_PER_CELL
 MARGIN = 4  # pixels left out at each cell border (half a texel is 2 pixels)
-PRINCIPLED_V1_ALBEDO = 1.0 + 1.0 / 168.0 if blender_compat.PRINCIPLED_VERSION == "V1" else 1.0
+PRINCIPLED_V1_ALBEDO = 1.0 + 1.0 / 168.0 if compat.PRINCIPLED_VERSION == "V1" else 1.0
 RTOL, ATOL = 2e-3, 2e-4  # Monte Carlo noise of the v1 factor (< 3.4 % spread, 4096 samples per cell) and EXR
 
 

@@ -4,7 +4,9 @@ import unittest
 
 import bpy
 
-from raysplats import axes, io_import, native
+from raysplats.io import format_table
+from raysplats.objects import axes
+from raysplats import native
 from raysplats.engine import sync
 
 
@@ -14,31 +16,31 @@ class Vocabularies(unittest.TestCase):
         self.assertEqual(extensions[:3], [".ply", ".splat", ".spz"])
         for extension in (".glb", ".gltf", ".compressed.ply", ".sog", "meta.json"):
             self.assertIn(extension, extensions)
-        self.assertEqual(io_import.splat_file_browser_filter(), ";".join("*" + e for e in extensions))
-        self.assertEqual(io_import.splat_menu_text(), f"Gaussian Splats ({'/'.join(extensions)})")
+        self.assertEqual(format_table.splat_file_browser_filter(), ";".join("*" + e for e in extensions))
+        self.assertEqual(format_table.splat_menu_text(), f"Gaussian Splats ({'/'.join(extensions)})")
         # Export offers what the core writes: SOG and glTF (the mesh export writes glTF splats) are read only here.
-        writable = io_import.splat_extensions(writable_only=True)
+        writable = format_table.splat_extensions(writable_only=True)
         self.assertNotIn(".sog", writable)
         self.assertNotIn(".glb", writable)
         self.assertIn(".compressed.ply", writable)
-        self.assertEqual(io_import.splat_format_of("/scans/unicorn/META.JSON")["name"], "sog")
-        self.assertIsNone(io_import.splat_format_of("/scans/unicorn/meta.json", writable_only=True))
-        self.assertIsNone(io_import.splat_format_of("/scans/settings.json"))
+        self.assertEqual(format_table.splat_format_of("/scans/unicorn/META.JSON")["name"], "sog")
+        self.assertIsNone(format_table.splat_format_of("/scans/unicorn/meta.json", writable_only=True))
+        self.assertIsNone(format_table.splat_format_of("/scans/settings.json"))
         # The automatic import up axis is the same for every format: the readers return COLMAP's -Y up (SPZ's RUB is
         # converted on reading), so the up axis is the scene's, not the format's.
-        self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/A.SPZ")), "-Y")
-        self.assertEqual(axes.resolve_import_up_axis("AUTO", io_import.splat_format_of("/scans/a.splat")), "-Y")
-        self.assertEqual(axes.resolve_import_up_axis("Z", io_import.splat_format_of("/scans/a.spz")), "Z")
-        self.assertIsNone(io_import.splat_format_of("/scans/a.xyz"))
+        self.assertEqual(axes.resolve_import_up_axis("AUTO", format_table.splat_format_of("/scans/A.SPZ")), "-Y")
+        self.assertEqual(axes.resolve_import_up_axis("AUTO", format_table.splat_format_of("/scans/a.splat")), "-Y")
+        self.assertEqual(axes.resolve_import_up_axis("Z", format_table.splat_format_of("/scans/a.spz")), "Z")
+        self.assertIsNone(format_table.splat_format_of("/scans/a.xyz"))
         # Detection: a decided estimate wins over the convention, except where the format's specification fixes up.
         found_z, unsure_z = {"axis": "Z", "decided": True}, {"axis": "Z", "decided": False}
-        ply, glb = io_import.splat_format_of("/scans/a.ply"), io_import.splat_format_of("/scans/a.glb")
+        ply, glb = format_table.splat_format_of("/scans/a.ply"), format_table.splat_format_of("/scans/a.glb")
         self.assertEqual(axes.resolve_import_up_axis("DETECT", ply, found_z), "Z")
         self.assertEqual(axes.resolve_import_up_axis("DETECT", ply, unsure_z), "-Y")
         self.assertEqual(axes.resolve_import_up_axis("DETECT", glb, found_z), "-Y")
         self.assertEqual(axes.resolve_import_up_axis("AUTO", ply, found_z), "-Y")
         self.assertFalse(axes.detection_wanted("DETECT", glb))
-        self.assertEqual(io_import.splat_format_of("/scans/a.compressed.ply")["name"], "compressed_ply")
+        self.assertEqual(format_table.splat_format_of("/scans/a.compressed.ply")["name"], "compressed_ply")
 
     def test_every_camera_type_renders_by_the_cores_name(self):
         camera = bpy.data.cameras.new("Vocabulary camera")

@@ -33,7 +33,10 @@ sys.path.insert(0, os.path.abspath(args.addon_dir))
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import compact_splats, io_export, io_import, native  # noqa: E402
+from raysplats.io import export_splats, import_splats
+from raysplats.objects import compact_points, splat_object
+from raysplats.tools import region_editing
+from raysplats import native  # noqa: E402
 
 core = native.core()
 
@@ -93,8 +96,8 @@ context = bpy.context
 t = start()
 bpy.ops.import_scene.gaussian_splats(filepath=scene_path)  # the defaults a user gets
 obj = context.view_layer.objects.active
-count = compact_splats.point_count(obj.data) if compact_splats.is_compact_object(obj) else len(obj.data.polygons)
-stage(f"import ({count / 1e6:.1f} M, {'points' if compact_splats.is_compact_object(obj) else 'polygons'})",
+count = splat_object.shown_count(obj)
+stage(f"import ({count / 1e6:.1f} M, {splat_object.kind_of(obj).lower()})",
       time.perf_counter() - t)
 
 scene = context.scene
@@ -104,7 +107,7 @@ scene.raysplats.samples = 1
 camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
 scene.collection.objects.link(camera)
 # As examples/benchmark_engine.py: inside the first showroom (its median splat), looking along it.
-points = compact_splats.object_cloud(obj)["positions"] if compact_splats.is_compact_object(obj) else None
+points = compact_points.object_cloud(obj)["positions"] if compact_points.is_compact_object(obj) else None
 if points is not None:
     median = np.median(points[: count // (args.tiles ** 2)], axis=0)
     del points
@@ -120,15 +123,15 @@ if not args.no_render:
     bpy.ops.render.render(write_still=True)
     stage("F12, 1920 x 1080, 1 sample", time.perf_counter() - t)
 
-if compact_splats.is_compact_object(obj):
-    positions = compact_splats.object_cloud(obj)["positions"]
+if compact_points.is_compact_object(obj):
+    positions = compact_points.object_cloud(obj)["positions"]
     # The region: the Gaussians nearest the first tile's centre, as a crop would give them.
     distance = np.linalg.norm(positions - positions[: len(positions) // (args.tiles ** 2)].mean(axis=0), axis=1)
     mask = distance <= np.partition(distance, args.region)[args.region]
     del positions, distance
     options = {"vertices_per_polygon": args.region_k} if args.region_k else {}
     t = start()
-    region, _ = compact_splats.edit_region_as_polygons(context, obj, mask, **options)
+    region, _ = region_editing.edit_region_as_polygons(context, obj, mask, **options)
     context.view_layer.update()  # the evaluation it causes (the next redraw's) belongs to this stage
     stage(f"edit region as polygons ({int(mask.sum()) / 1e3:.0f} k, K = {region.raysplats.vertices_per_polygon})",
           time.perf_counter() - t)
@@ -144,14 +147,14 @@ if compact_splats.is_compact_object(obj):
     bpy.ops.object.mode_set(mode="OBJECT")
     stage("leave Edit Mode", time.perf_counter() - t)
     t = start()
-    compact_splats.merge_region_back(context, region, obj)
+    region_editing.merge_region_back(context, region, obj)
     context.view_layer.update()
     stage("merge the region back", time.perf_counter() - t)
 
 if not args.no_render:
     out = os.path.join(args.work, "exported.ply")
     t = start()
-    io_export.export_gaussian_splats(context, out)
+    export_splats.export_gaussian_splats(context, out)
     stage("export .ply", time.perf_counter() - t)
     print(f"  written {os.path.getsize(out) / 1e6:.0f} MB", flush=True)
     os.remove(out)

@@ -22,7 +22,8 @@ sys.path.insert(0, os.path.join(HERE, "..", "addon"))
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import gaussian_mesh, native  # noqa: E402
+from raysplats.objects import polygon_mesh
+from raysplats import native  # noqa: E402
 from raysplats.engine import sync  # noqa: E402
 
 bpy.ops.import_scene.gaussian_splats(filepath=args.scene)
@@ -33,7 +34,7 @@ bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, -3))
 bpy.ops.object.light_add(type="SUN")
 # Camera at the median of the splat centres, looking along a horizontal axis, 60° field of view.
 world_centres = []
-for piece in gaussian_mesh.scene_pieces(splats.parent or splats):  # (a big scene is imported in pieces)
+for piece in polygon_mesh.scene_pieces(splats.parent or splats):  # (a big scene is imported in pieces)
     centres = np.empty(len(piece.data.polygons) * 3, dtype=np.float32)
     piece.data.polygons.foreach_get("center", centres)
     world = np.array(piece.matrix_world)

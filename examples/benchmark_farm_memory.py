@@ -28,7 +28,8 @@ sys.path.insert(0, os.path.join(REPO, "addon"))
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import cli, io_import  # noqa: E402
+from raysplats.io import import_splats
+from raysplats import cli  # noqa: E402
 
 AS_MODULE = not bpy.app.binary_path
 WORKER = os.path.join(REPO, "farm", "tests", "render_worker.py")
@@ -39,7 +40,7 @@ def save_shot(name, representation=None):
     scene = bpy.context.scene
     count = 0
     if representation:
-        obj, _, _ = io_import.import_gaussian_splats(bpy.context, args.file, representation=representation)
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, args.file, representation=representation)
         count = len(obj.data.vertices) if representation == "POINTS" else sum(
             len(o.data.polygons) for o in scene.objects if o.type == "MESH")
         cli.frame_camera(scene)

@@ -20,12 +20,14 @@ sys.path.insert(0, os.path.join(HERE, "..", "addon"))
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import gaussian_mesh, io_export, io_import, native  # noqa: E402
+from raysplats.io import export_splats, import_splats
+from raysplats.objects import polygon_mesh
+from raysplats import native  # noqa: E402
 
 context = bpy.context
 t = time.perf_counter()
 # One object (not Auto's pieces for big scenes): the reading and recovery below are timed on one whole mesh.
-obj, _, import_times = io_import.import_gaussian_splats(context, args.scene, vertices_per_polygon=args.k,
+obj, _, import_times = import_splats.import_gaussian_splats(context, args.scene, vertices_per_polygon=args.k,
                                                        objects="ONE")
 context.view_layer.update()
 t_import = time.perf_counter() - t
@@ -34,8 +36,8 @@ n = len(obj.data.polygons)
 depsgraph = context.evaluated_depsgraph_get()
 t = time.perf_counter()
 mesh = obj.evaluated_get(depsgraph).data
-arrays = gaussian_mesh.mesh_arrays(mesh)
-attributes = gaussian_mesh.face_attributes(mesh, obj.raysplats.sh_degree)
+arrays = polygon_mesh.mesh_arrays(mesh)
+attributes = polygon_mesh.face_attributes(mesh, obj.raysplats.sh_degree)
 t_read = time.perf_counter() - t
 import numpy as np  # noqa: E402
 
@@ -50,7 +52,7 @@ t_recover_moments = time.perf_counter() - t
 
 out = os.path.join(tempfile.mkdtemp(), "benchmark.ply")
 t = time.perf_counter()
-io_export.export_gaussian_splats(context, out)
+export_splats.export_gaussian_splats(context, out)
 t_export = time.perf_counter() - t
 os.remove(out)
 

@@ -29,7 +29,9 @@ sys.path.insert(0, args.addon_dir)
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import gaussian_mesh, mesh_memory, native  # noqa: E402
+from raysplats.blender import mesh_memory
+from raysplats.objects import polygon_mesh
+from raysplats import native  # noqa: E402
 
 native.core()  # the core's libraries count as the empty Blender
 
@@ -50,7 +52,7 @@ seconds = time.perf_counter() - t
 import_peak = mesh_memory.process_memory_bytes("VmHWM")
 after_import = mesh_memory.process_memory_bytes("VmRSS")
 obj = context.view_layer.objects.active
-pieces = gaussian_mesh.scene_pieces(obj.parent or obj)  # (a big scene is imported in pieces)
+pieces = polygon_mesh.scene_pieces(obj.parent or obj)  # (a big scene is imported in pieces)
 count = sum(len(piece.data.polygons) for piece in pieces)
 context.view_layer.update()
 context.evaluated_depsgraph_get()

@@ -42,7 +42,8 @@ def main():
     args.out_dir = os.path.abspath(args.out_dir)  # (Blender's save operator refuses a relative path)
     os.makedirs(args.out_dir, exist_ok=True)
     enable_addon()
-    from raysplats import cli, io_export
+    from raysplats.io import export_splats
+    from raysplats import cli
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     enable_addon()
@@ -115,7 +116,7 @@ def main():
     # 4. Export the edited scene back to splat formats (edits applied, file convention restored).
     for extension in (".ply", ".spz"):
         path = os.path.join(args.out_dir, "edited_" + os.path.splitext(args.scene)[0] + extension)
-        count, stats, _ = io_export.export_gaussian_splats(bpy.context, path)
+        count, stats, _ = export_splats.export_gaussian_splats(bpy.context, path)
         print(f"demo: exported {count:,} Gaussians to {path} ({os.path.getsize(path) / 1e6:.1f} MB)")
     bpy.ops.wm.save_as_mainfile(filepath=os.path.join(args.out_dir, "demo.blend"))
     print(f"demo: done in {time.perf_counter() - t0:.1f} s; outputs in {args.out_dir}")

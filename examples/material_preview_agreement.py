@@ -33,7 +33,7 @@ DEFAULT_SCENES = ("unicorn_sh3_reordered.ply", "donut_sh0.ply")
 # Views around the splats' centre: (name, azimuth about the world Z axis, elevation), in degrees. Opposite sides,
 # so that each scene is seen once with the faces drawn first in front and once behind.
 VIEWS = (("front", 0.0, 15.0), ("back", 180.0, 15.0))
-MODES = ("blend", "hashed")  # material.set_eevee_transparency(sorted_blending=True / False)
+MODES = ("blend", "hashed")  # falloff_material.set_eevee_transparency(sorted_blending=True / False)
 COVERED_ALPHA = 1.0 / 255.0
 
 
@@ -153,7 +153,8 @@ def measure(scene_path, out_dir, size=320, eevee_samples=64, raysplats_samples=3
             save_png=True):
     """Renders one scene from each view with RaySplats and with EEVEE in each material mode.
     Returns rows {scene, view, mode, image, splats, covered, seconds}."""
-    from raysplats import blender_compat, material
+    from raysplats.blender import compat
+    from raysplats.objects import falloff_material
 
     os.makedirs(out_dir, exist_ok=True)
     scene = bpy.context.scene
@@ -170,15 +171,15 @@ def measure(scene_path, out_dir, size=320, eevee_samples=64, raysplats_samples=3
         if save_png:
             save_display_png(reference, f"{stem}_raysplats.png")
         for mode in modes:
-            material.set_eevee_transparency(gaussian_material, sorted_blending=(mode == "blend"))
+            falloff_material.set_eevee_transparency(gaussian_material, sorted_blending=(mode == "blend"))
             start = time.perf_counter()
-            eevee = render_rgba(scene, blender_compat.EEVEE_ENGINE, f"{stem}_eevee_{mode}.exr", eevee_samples)
+            eevee = render_rgba(scene, compat.EEVEE_ENGINE, f"{stem}_eevee_{mode}.exr", eevee_samples)
             seconds = time.perf_counter() - start
             if save_png:
                 save_display_png(eevee, f"{stem}_eevee_{mode}.png")
             rows.append({"scene": os.path.basename(scene_path), "view": view, "mode": mode, "seconds": seconds,
                          **compare(reference, eevee)})
-    material.set_eevee_transparency(gaussian_material, sorted_blending=False)
+    falloff_material.set_eevee_transparency(gaussian_material, sorted_blending=False)
     return rows
 
 

@@ -1,6 +1,7 @@
 # RaySplats: editable, ray-traced 3D Gaussian Splatting scenes in Blender.
 # The add-on is glue (docs/design.md §2): it moves Blender data in bulk to the native core (raysplats._native) and
-# back. Module import order is fixed (utils -> properties -> io -> engine) so that "Reload Scripts" works.
+# back. Packages by concept: blender/ (Blender access), objects/ (what a splat object is), io/ (files), tools/
+# (operators), ui/ (panels), engine/ (the render engine); docs/architecture.md has a paragraph on each.
 
 bl_info = {
     "name": "RaySplats",
@@ -13,24 +14,35 @@ bl_info = {
     "category": "Import-Export",
 }
 
-if "bpy" in locals():
-    import importlib
+# The modules in dependency order (each after those it imports), so that "Reload Scripts" reloads them in place.
+_MODULE_NAMES = (
+    "native", "errors", "progress",
+    "blender.compat", "blender.mesh_read", "blender.mesh_memory", "blender.material_reader",
+    "objects.axes", "objects.color_adjustment", "objects.object_settings", "objects.polygon_mesh",
+    "objects.falloff_material", "objects.blender_splats", "objects.compact_points", "objects.modifier_checks",
+    "objects.splat_object", "objects.creation",
+    "io.format_table", "io.import_policy", "io.gltf_mesh_import", "io.export_scope",
+    "ui.solid_view", "io.import_splats", "io.export_splats", "io.export_mesh",
+    "tools.select_splats", "tools.upkeep", "tools.exact_apply", "tools.region_editing", "tools.convert_splats",
+    "tools.handlers", "ui.panels",
+    "engine.render_properties", "engine.color_management", "engine.material_table", "engine.passes", "engine.sync",
+    "engine.final", "engine.viewport", "engine.ui", "engine",
+)
+# The modules with register()/unregister(), in registration order.
+_REGISTERED_NAMES = ("objects.object_settings", "io.import_splats", "io.export_splats", "io.export_mesh",
+                     "tools.convert_splats", "tools.region_editing", "tools.select_splats", "tools.upkeep",
+                     "tools.exact_apply", "tools.handlers", "ui.panels", "engine")
 
-    for _module in (native, blender_compat, errors, axes, progress, color_adjustment, properties,  # noqa: F821
-                    mesh_fast_read, gaussian_mesh, material, material_reader, export_scope, modifier_checks,
-                    io_import, native_splats, compact_splats, io_export, io_mesh_export, splat_selection, splat_tools,
-                    splat_transform, splat_handlers, splat_ui, engine):  # noqa: F821
-        importlib.reload(_module)
-else:
-    from . import (native, blender_compat, errors, axes, progress, color_adjustment, properties, mesh_fast_read,
-                   gaussian_mesh, material, material_reader, export_scope, modifier_checks, io_import, native_splats,
-                   compact_splats, io_export, io_mesh_export, splat_selection, splat_tools, splat_transform,
-                   splat_handlers, splat_ui, engine)
+import importlib  # noqa: E402
+import sys  # noqa: E402
 
 import bpy  # noqa: E402
 
-_modules = (properties, io_import, io_export, io_mesh_export, native_splats, compact_splats, splat_selection,
-            splat_tools, splat_transform, splat_handlers, splat_ui, engine)
+_reloading = f"{__name__}.engine" in sys.modules
+_modules = {}
+for _name in _MODULE_NAMES:
+    _module = importlib.import_module(f".{_name}", __name__)
+    _modules[_name] = importlib.reload(_module) if _reloading else _module
 
 
 def register():
@@ -38,7 +50,7 @@ def register():
     # takes back the modules registered before it, so Blender is left as it was and enabling again can work.
     registered = []
     try:
-        for module in _modules:
+        for module in (_modules[name] for name in _REGISTERED_NAMES):
             module.register()
             registered.append(module)
     except BaseException:
@@ -51,5 +63,5 @@ def register():
 
 
 def unregister():
-    for module in reversed(_modules):
+    for module in (_modules[name] for name in reversed(_REGISTERED_NAMES)):
         module.unregister()

@@ -34,34 +34,36 @@ import bpy
 
 # Imported as a module of an installed extension (bl_ext.<repository>.raysplats.cli, Blender 4.2+: how a farm job runs
 # it, farm/openjd/raysplats_convert.yaml), the add-on is not importable as `raysplats`, the name the functions below
-# import it by: give it that name. Its modules are attributes of the package (its __init__ imports them all), so no
-# second copy of any is loaded.
+# import it by: give it and each of its modules (its __init__ imports them all) that name, so that no second copy of
+# any is loaded.
 if __package__ and __package__ != "raysplats" and __package__.endswith(".raysplats"):
-    sys.modules.setdefault("raysplats", sys.modules[__package__])
+    for _name, _module in list(sys.modules.items()):
+        if _name == __package__ or _name.startswith(__package__ + "."):
+            sys.modules.setdefault("raysplats" + _name[len(__package__):], _module)
 
 
 # Format names and extensions come from the add-on (which takes the splat formats from the core); it is
 # imported only once ensure_addon() has registered it.
 def _splat_formats():
     """The formats a splat file can be converted to (the core writes them)."""
-    from raysplats import io_import
-    return tuple(f["name"] for f in io_import.splat_formats(writable_only=True))
+    from raysplats.io import format_table
+    return tuple(f["name"] for f in format_table.splat_formats(writable_only=True))
 
 
 def _splat_extensions(writable_only=False):
-    from raysplats import io_import
-    return io_import.splat_extensions(writable_only)
+    from raysplats.io import format_table
+    return format_table.splat_extensions(writable_only)
 
 
 def _is_splat_file(path):
-    """Whether the name ends in one of the core's splat endings (the core's rule, io_import.splat_format_of)."""
-    from raysplats import io_import
-    return io_import.splat_format_of(path) is not None
+    """Whether the name ends in one of the core's splat endings (the core's rule, format_table.splat_format_of)."""
+    from raysplats.io import format_table
+    return format_table.splat_format_of(path) is not None
 
 
 def _mesh_formats():
-    from raysplats import io_mesh_export
-    return tuple(sorted(extension.lstrip(".") for extension in io_mesh_export.MESH_EXTENSIONS))
+    from raysplats.io import export_mesh
+    return tuple(sorted(extension.lstrip(".") for extension in export_mesh.MESH_EXTENSIONS))
 
 
 class UsageError(Exception):
@@ -164,8 +166,8 @@ def _atomic_output(path):
 
 
 def _import_splats(source, args):
-    from raysplats import io_import
-    obj, warnings, _ = io_import.import_gaussian_splats(
+    from raysplats.io import import_splats
+    obj, warnings, _ = import_splats.import_gaussian_splats(
         bpy.context, source, vertices_per_polygon=args.vertices_per_polygon, radius=args.radius,
         up_axis=args.up_axis)
     for warning in warnings:
@@ -193,17 +195,17 @@ def _do_import(source, target, args):
     obj = _import_splats(source, args)
     with _atomic_output(target) as temporary:
         bpy.ops.wm.save_as_mainfile(filepath=temporary, copy=True, compress=False)
-    from raysplats import gaussian_mesh
-    pieces = gaussian_mesh.scene_pieces(obj)
+    from raysplats.objects import polygon_mesh
+    pieces = polygon_mesh.scene_pieces(obj)
     count = sum(len(piece.data.polygons) for piece in pieces) if pieces else len(getattr(obj.data, "points", obj.data.vertices))
     return f"{count:,} Gaussians" + (f" in {len(pieces)} pieces" if len(pieces) > 1 else "")
 
 
 def _do_export(source, target, args):
-    from raysplats import io_mesh_export
+    from raysplats.io import export_mesh
     _open_input(source, args)
     # The native writer is atomic itself (temporary file renamed over the target).
-    stats = io_mesh_export.export_mesh_file(
+    stats = export_mesh.export_mesh_file(
         bpy.context, target, apply_modifiers=not args.no_modifiers, coordinates="LOCAL" if args.local else "WORLD",
         up_axis=args.mesh_up_axis, splat_geometry="POLYGONS" if args.polygons else "PATCHES", draco=args.draco,
         draco_position_bits=args.draco_position_bits, draco_normal_bits=args.draco_normal_bits,
@@ -217,12 +219,12 @@ def frame_camera(scene, distance=1.1, elevation=0.35):
     `distance` and `elevation` times the box's diagonal away from its centre (along -Y and +Z)."""
     import mathutils
     import numpy as np
-    from raysplats import gaussian_mesh
+    from raysplats.objects import polygon_mesh
     points = []
     for obj in scene.objects:
         if obj.type == "MESH" and len(obj.data.vertices):
             co = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
-            gaussian_mesh.read_vertex_positions(obj.data, co)  # 0.2 s less per 1.5 M splats on 4.x
+            polygon_mesh.read_vertex_positions(obj.data, co)  # 0.2 s less per 1.5 M splats on 4.x
             world = np.array(obj.matrix_world)
             points.append(co.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3])
     if not points:
@@ -300,10 +302,10 @@ def run(argv):
         extension = ".png"
     elif args.command == "convert":
         # Splat formats by the core's table: "compressed_ply" is written as ".compressed.ply".
-        from raysplats import io_import
-        named = io_import.splat_format_of(args.output)
+        from raysplats.io import format_table
+        named = format_table.splat_format_of(args.output)
         fmt = args.format or (named["name"] if named else "")
-        entry = next((f for f in io_import.splat_formats() if f["name"] == fmt), None)
+        entry = next((f for f in format_table.splat_formats() if f["name"] == fmt), None)
         if entry is None:
             raise UsageError(f"convert: give --format ({', '.join(_splat_formats())}) or an output file with that "
                              f"format's extension ({', '.join(_splat_extensions())})")

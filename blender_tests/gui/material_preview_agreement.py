@@ -27,7 +27,8 @@ raysplats.register()
 # Before the event loop starts, so that no splash covers the 3D view in the screenshots.
 bpy.context.preferences.view.show_splash = False
 import material_preview_agreement as agreement  # noqa: E402
-from raysplats import blender_compat, material  # noqa: E402
+from raysplats.blender import compat
+from raysplats.objects import falloff_material  # noqa: E402
 
 SCENE = "unicorn_sh3_reordered.ply"
 SIZE, EEVEE_SAMPLES, RAYSPLATS_SAMPLES = 240, 64, 32
@@ -102,7 +103,7 @@ def step():
             check_material_preview()
             # measure() left the imported scene, switched Solid views and the Hashed material: look at it in Solid.
             obj = bpy.context.active_object
-            if space.shading.color_type != blender_compat.SOLID_COLOR_TYPE_ATTRIBUTE:
+            if space.shading.color_type != compat.SOLID_COLOR_TYPE_ATTRIBUTE:
                 fail(f"the import left Solid colour at {space.shading.color_type}")
             space.shading.type = "SOLID"
             # Frame the bulk of the splats from the front (view_selected would frame the floaters too).

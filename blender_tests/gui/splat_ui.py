@@ -3,7 +3,7 @@
 # of the tools is drawn: the Apply menu, Edit Mode's Select and Mesh menus with their Gaussian Splats submenus, Shift+A,
 # and the Object Properties and sidebar panels. ctest fails it on a draw error: a Python traceback or a layout warning
 # ("property not found", "unknown operator") in the console.
-#   xvfb-run blender --factory-startup --python splat_ui.py -- --addon-dir A --data-dir D
+#   xvfb-run blender --factory-startup --python panels.py -- --addon-dir A --data-dir D
 import os
 import sys
 import traceback
@@ -17,13 +17,13 @@ sys.path.insert(0, options["--addon-dir"])
 import raysplats  # noqa: E402
 
 raysplats.register()
-from raysplats import splat_ui  # noqa: E402
+from raysplats.ui import panels  # noqa: E402
 
 MENUS_IN_OBJECT_MODE = ("VIEW3D_MT_raysplats_apply", "VIEW3D_MT_object_apply", "VIEW3D_MT_add")
 MENUS_IN_EDIT_MODE = ("VIEW3D_MT_select_edit_mesh", "VIEW3D_MT_edit_mesh", "VIEW3D_MT_raysplats_select",
                       "VIEW3D_MT_raysplats_mesh")
-PANELS = (splat_ui.OBJECT_PT_raysplats, splat_ui.OBJECT_PT_raysplats_colors, splat_ui.VIEW3D_PT_raysplats,
-          splat_ui.VIEW3D_PT_raysplats_select, splat_ui.VIEW3D_PT_raysplats_clean_up, splat_ui.VIEW3D_PT_raysplats_colors)
+PANELS = (panels.OBJECT_PT_raysplats, panels.OBJECT_PT_raysplats_colors, panels.VIEW3D_PT_raysplats,
+          panels.VIEW3D_PT_raysplats_select, panels.VIEW3D_PT_raysplats_clean_up, panels.VIEW3D_PT_raysplats_colors)
 drawn = []
 
 

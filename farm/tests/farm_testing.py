@@ -33,8 +33,8 @@ def build_shot(blend_path, splat_path=None, frames=(1, 6), width=64, height=36, 
         bpy.ops.wm.ply_import(filepath=splat_path or st.data_file(SCENE))
         obj = bpy.context.view_layer.objects.active
     else:
-        from raysplats import io_import
-        obj, _, _ = io_import.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE), **import_options)
+        from raysplats.io import import_splats
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE), **import_options)
     meshes = [o for o in scene.objects if o.type in {"MESH", "POINTCLOUD"}]
     corners = [o.matrix_world @ Vector(corner) for o in meshes for corner in o.bound_box]
     centre = sum(corners, Vector()) / len(corners)

@@ -84,8 +84,8 @@ class BlendTravels(unittest.TestCase):
             self.assertGreater(len(obj.data.vertices), 9000)
 
     def test_blender_made_splats(self):
-        from raysplats import blender_compat
-        if not blender_compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+        from raysplats.blender import compat
+        if not compat.HAS_NATIVE_GAUSSIAN_SPLATS:
             self.skipTest(f"Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3+)")
         obj = self.travel("blender_splats", blender_import=True)
         self.assertEqual(obj.type, "POINTCLOUD")

@@ -3,7 +3,7 @@
 import bpy
 
 from .. import errors
-from . import final, passes, properties, sync, ui, viewport
+from . import final, passes, render_properties, sync, ui, viewport
 
 
 class RaySplatsRenderEngine(bpy.types.RenderEngine):
@@ -46,7 +46,7 @@ class RaySplatsRenderEngine(bpy.types.RenderEngine):
 
 
 def register():
-    properties.register()
+    render_properties.register()
     passes.register()
     bpy.utils.register_class(RaySplatsRenderEngine)
     ui.register()
@@ -56,7 +56,7 @@ def unregister():
     ui.unregister()
     bpy.utils.unregister_class(RaySplatsRenderEngine)
     passes.unregister()
-    properties.unregister()
+    render_properties.unregister()
 
 
 __all__ = ["RaySplatsRenderEngine", "register", "unregister", "sync"]

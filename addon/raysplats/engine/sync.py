@@ -4,9 +4,11 @@
 import bpy
 import numpy as np
 
-from .. import blender_compat, color_adjustment, compact_splats, gaussian_mesh, mesh_fast_read, modifier_checks, native
-from ..material_reader import input_value
-from .materials import MaterialTable
+from .. import native
+from ..blender import compat, mesh_read
+from ..objects import color_adjustment, compact_points, polygon_mesh, splat_object
+from ..blender.material_reader import input_value
+from .material_table import MaterialTable
 
 
 def _light_kwargs(light, matrix):
@@ -20,7 +22,7 @@ def _light_kwargs(light, matrix):
     if light.type == "AREA":
         shape = "AREA_DISK" if light.shape in ("DISK", "ELLIPSE") else "AREA_RECTANGLE"
         size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
-        return dict(common, type=shape, power=float(light.energy) * blender_compat.AREA_LIGHT_POWER_SCALE,
+        return dict(common, type=shape, power=float(light.energy) * compat.AREA_LIGHT_POWER_SCALE,
                     size_x=float(light.size * scale.x), size_y=float(size_y * scale.y))
     return dict(common, type="POINT")
 
@@ -170,10 +172,10 @@ class SceneSync:
         without filling its arrays: to_mesh() fills a copy."""
         if obj.original.mode == "EDIT" and obj.type == "MESH":
             try:
-                return compact_splats.object_cloud(obj, obj.to_mesh())
+                return compact_points.object_cloud(obj, obj.to_mesh())
             finally:
                 obj.to_mesh_clear()
-        return compact_splats.object_cloud(obj)
+        return compact_points.object_cloud(obj)
 
     def _warn_once(self, message):
         if message not in self._seen_warnings:
@@ -193,8 +195,8 @@ class SceneSync:
         arrays, attributes = (reuse.arrays, reuse.attributes) if reuse else (None, None)
 
         def read(mesh):
-            return _CloudSource(gaussian_mesh.mesh_arrays(mesh, arrays, previous.arrays if previous else None),
-                                gaussian_mesh.face_attributes(mesh, key[2], attributes), key)
+            return _CloudSource(polygon_mesh.mesh_arrays(mesh, arrays, previous.arrays if previous else None),
+                                polygon_mesh.face_attributes(mesh, key[2], attributes), key)
 
         if obj.original.mode == "EDIT":
             source = self._read_edit_mode_positions(obj, reuse, previous, key)
@@ -207,28 +209,28 @@ class SceneSync:
             finally:
                 obj.to_mesh_clear()
         # (An instance's object is not necessarily the evaluated object of its datablock: read its own mesh.)
-        return read(obj.data if depsgraph is None else mesh_fast_read.evaluated_mesh(obj, depsgraph))
+        return read(obj.data if depsgraph is None else mesh_read.evaluated_mesh(obj, depsgraph))
 
     @staticmethod
     def _read_edit_mode_positions(obj, reuse, previous, key):
         """In Edit Mode, when the evaluated mesh is the edit mesh itself (no modifiers, shape keys or deforming parent)
         and its faces are still those of `previous`: `previous` with the vertex positions read in place from the
-        BMesh (mesh_fast_read.read_edit_mode_positions; the face attributes are taken as they were). Else None."""
+        BMesh (mesh_read.read_edit_mode_positions; the face attributes are taken as they were). Else None."""
         original = obj.original
         if previous is None or previous.settings_key != key or len(original.modifiers) \
-                or original.data.shape_keys is not None or not mesh_fast_read.places_only(original):
+                or original.data.shape_keys is not None or not mesh_read.places_only(original):
             return None
-        positions = mesh_fast_read.flat_buffer(reuse.arrays[0] if reuse else None, previous.arrays[0].size,
+        positions = mesh_read.flat_buffer(reuse.arrays[0] if reuse else None, previous.arrays[0].size,
                                                np.float32).reshape((-1, 3))
         if np.shares_memory(positions, previous.arrays[0]):  # (`previous` is compared with what is read)
             positions = np.empty_like(previous.arrays[0])
-        if mesh_fast_read.read_edit_mode_positions(original.data, positions, *previous.arrays[1:]) != "read":
+        if mesh_read.read_edit_mode_positions(original.data, positions, *previous.arrays[1:]) != "read":
             return None
         return _CloudSource((positions,) + tuple(previous.arrays[1:]), previous.attributes, key)
 
     def _recover(self, obj, source, faces=None):
         """Gaussians of an evaluated Gaussian object (all, or `faces`), in its own frame."""
-        return gaussian_mesh.recover_from_arrays(self.core, source.arrays, source.attributes, obj.raysplats,
+        return polygon_mesh.recover_from_arrays(self.core, source.arrays, source.attributes, obj.raysplats,
                                                  IDENTITY, faces)
 
     def _keep_source(self, uid, source, cloud):
@@ -281,34 +283,29 @@ class SceneSync:
             obj = instance.object
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
-            if obj.type == "MESH" and gaussian_mesh.is_gaussian_object(obj):
-                for message in modifier_checks.fidelity_warnings(obj.original, for_render=not self.interactive):
+            kind = splat_object.kind_of(obj)
+            if kind is not None:
+                for message in splat_object.fidelity_warnings(obj.original, for_render=not self.interactive):
                     self._warn_once(message)
-                source = self._read(obj, None if instance.is_instance else depsgraph)
-                cloud = self._recover(obj, source)
-                if len(cloud["opacities"]):
-                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
-                                                       cloud["opacities"], cloud["sh"],
-                                                       np.array(matrix, dtype=np.float32))
-                    stats.splats += len(cloud["opacities"])
-                    render_scene.set_gaussian_shading(index, _object_shading(obj))
-                    if uid is not None:
-                        self.shading[uid] = _object_shading(obj)
-                        self.clouds[uid] = (index, len(cloud["opacities"]))
-                        self._keep_source(uid, source, cloud)
-            elif compact_splats.is_compact_object(obj):
-                for message in (modifier_checks.compact_warnings(obj.original, for_render=not self.interactive)
-                                + modifier_checks.corner_only_apply_warnings(obj.original)):
-                    self._warn_once(message)
-                cloud = self._compact_cloud(obj)
-                if cloud is not None:
-                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
-                                                       cloud["opacities"], cloud["sh"],
-                                                       np.array(matrix, dtype=np.float32))
-                    stats.splats += len(cloud["opacities"])
-                    render_scene.set_gaussian_shading(index, _object_shading(obj))
-                    if uid is not None:
-                        self.compact[uid] = (index, len(cloud["opacities"]))
+                if kind == splat_object.POLYGONS:
+                    source = self._read(obj, None if instance.is_instance else depsgraph)
+                    cloud = self._recover(obj, source)
+                else:
+                    source, cloud = None, self._compact_cloud(obj)
+                if cloud is None or not len(cloud["opacities"]):
+                    continue
+                index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                   cloud["opacities"], cloud["sh"], np.array(matrix, dtype=np.float32))
+                stats.splats += len(cloud["opacities"])
+                render_scene.set_gaussian_shading(index, _object_shading(obj))
+                if uid is None:
+                    continue
+                if kind == splat_object.POLYGONS:
+                    self.shading[uid] = _object_shading(obj)
+                    self.clouds[uid] = (index, len(cloud["opacities"]))
+                    self._keep_source(uid, source, cloud)
+                else:
+                    self.compact[uid] = (index, len(cloud["opacities"]))
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
                 arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
@@ -453,7 +450,7 @@ def camera_settings(scene, camera_object, width, height):
     }
     if cam.type == "PANO":
         # Blender 4 keeps panoramic settings on the camera; Blender 3 in Cycles' properties (ours here).
-        source = cam if blender_compat.CAMERA_HAS_PANORAMA_SETTINGS else cam.raysplats
+        source = cam if compat.CAMERA_HAS_PANORAMA_SETTINGS else cam.raysplats
         panorama = source.panorama_type
         # The core spells its camera models as Blender spells camera and panorama types.
         supported = [model["name"] for model in native.core().camera_models()]

@@ -1,7 +1,7 @@
 # Render Properties panels of the RaySplats engine, and the Blender panels it is compatible with.
 import bpy
 
-from .. import blender_compat
+from ..blender import compat
 from . import color_management, passes
 
 ENGINE = "RAYSPLATS"
@@ -111,7 +111,7 @@ class RAYSPLATS_CAMERA_PT_panorama(RaySplatsPanel, bpy.types.Panel):
     def poll(cls, context):
         camera = context.camera
         return (super().poll(context) and camera is not None and camera.type == "PANO"
-                and not blender_compat.CAMERA_HAS_PANORAMA_SETTINGS)  # Blender 4 shows its own settings
+                and not compat.CAMERA_HAS_PANORAMA_SETTINGS)  # Blender 4 shows its own settings
 
     def draw(self, context):
         layout = self.layout

@@ -6,7 +6,8 @@ import re
 
 import bpy
 
-from . import blender_compat, native
+from .. import native
+from ..blender import compat
 
 
 class GltfMeshImportFailed(OSError):
@@ -26,7 +27,7 @@ def import_gltf_meshes(context, filepath):
     contents = native.core().gltf_contents(filepath)
     if contents["other_primitives"] == 0:
         return []
-    blender_compat.prepare_gltf_importer()
+    compat.prepare_gltf_importer()
     before = set(bpy.data.objects)
     try:
         result = bpy.ops.import_scene.gltf(filepath=filepath)

@@ -6,7 +6,8 @@ import ctypes
 
 import numpy as np
 
-from . import blender_compat, native
+from .. import native
+from . import compat
 
 _WIDTH_OF = {"FLOAT": 1, "FLOAT2": 2, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4}
 # The AttributeGroup data property that holds an attribute's values, by data type (foreach_get/foreach_set).
@@ -46,11 +47,11 @@ def read_attribute(mesh, name, data_type, domain, count, reuse=None):
 # Reading a Gaussian mesh back was most of the viewport's update after an edit on 4.x, where
 # vertices.foreach_get("co") and loops.foreach_get("vertex_index") are 20-140 times slower than the same values
 # through the attributes "position" and ".corner_vert"; on 3.4 a copy straight out of Blender's loop array is several
-# times faster than foreach_get (which needs uint32, see blender_compat.MESH_INDEX_DTYPE). docs/benchmarks.md,
+# times faster than foreach_get (which needs uint32, see compat.MESH_INDEX_DTYPE). docs/benchmarks.md,
 # Blender-side reads, has the figures. So: the attributes where they exist (4.x), else the loop array in place (3.x),
 # else foreach_get.
 #
-# The byte layouts read in place (blender_compat.LOOP_STRIDE, FACE_STRIDE and their offsets) are checked on the mesh
+# The byte layouts read in place (compat.LOOP_STRIDE, FACE_STRIDE and their offsets) are checked on the mesh
 # at hand before every read; a copy out of the face array in place is about ten times faster than
 # polygons.foreach_get("loop_total").
 _loop_layout_failed = False  # the check failed once: this Blender lays its loops out otherwise, do not look again
@@ -89,16 +90,16 @@ def _field_view(elements, stride, offset, value_of):
 
 def _loop_vertex_view(loops):
     """The vertex index of each corner in place in Blender's loop array, or None when the array is not laid out as
-    blender_compat.LOOP_STRIDE and LOOP_VERTEX_OFFSET say."""
-    return _field_view(loops, blender_compat.LOOP_STRIDE, blender_compat.LOOP_VERTEX_OFFSET,
+    compat.LOOP_STRIDE and LOOP_VERTEX_OFFSET say."""
+    return _field_view(loops, compat.LOOP_STRIDE, compat.LOOP_VERTEX_OFFSET,
                        lambda loop: loop.vertex_index)
 
 
 def read_corner_vertices(mesh, out):
-    """Fills `out` (flat, one blender_compat.MESH_INDEX_DTYPE element per corner of `mesh`) with the vertex of each
+    """Fills `out` (flat, one compat.MESH_INDEX_DTYPE element per corner of `mesh`) with the vertex of each
     corner. Returns how it read them: "attribute", "pointer" or "foreach_get"."""
     global _loop_layout_failed
-    attribute = _attribute(mesh, blender_compat.MESH_CORNER_VERTEX_ATTRIBUTE, "INT", "CORNER", len(out))
+    attribute = _attribute(mesh, compat.MESH_CORNER_VERTEX_ATTRIBUTE, "INT", "CORNER", len(out))
     if attribute is not None:
         attribute.data.foreach_get("value", out.view(np.int32))
         return "attribute"
@@ -117,15 +118,15 @@ def read_corner_vertices(mesh, out):
 
 def _face_views(mesh):
     """(first corner, corner count) of each face of `mesh` (uint32) out of Blender's face array in place (the counts
-    computed from the offsets from 3.6 on), or None when the array is not laid out as blender_compat.FACE_STRIDE,
+    computed from the offsets from 3.6 on), or None when the array is not laid out as compat.FACE_STRIDE,
     FACE_START_OFFSET and FACE_SIZE_OFFSET say."""
     faces = mesh.polygons
-    starts = _field_view(faces, blender_compat.FACE_STRIDE, blender_compat.FACE_START_OFFSET,
+    starts = _field_view(faces, compat.FACE_STRIDE, compat.FACE_START_OFFSET,
                          lambda face: face.loop_start)
     if starts is None:
         return None
-    if blender_compat.FACE_SIZE_OFFSET is not None:
-        sizes = _field_view(faces, blender_compat.FACE_STRIDE, blender_compat.FACE_SIZE_OFFSET,
+    if compat.FACE_SIZE_OFFSET is not None:
+        sizes = _field_view(faces, compat.FACE_STRIDE, compat.FACE_SIZE_OFFSET,
                             lambda face: face.loop_total)
         return None if sizes is None else (starts, sizes)
     # The last offset (the corner count) follows the last face's in Blender's array; it is not read from there, so
@@ -160,7 +161,7 @@ def read_face_corners(mesh, sizes=None, starts=None):
     return "foreach_get"
 
 
-# Why evaluated_mesh (see blender_compat.EVALUATED_MESH_COPIES_ON_READ): on Blender 3.4 the first read of an evaluated
+# Why evaluated_mesh (see compat.EVALUATED_MESH_COPIES_ON_READ): on Blender 3.4 the first read of an evaluated
 # mesh after an edit makes a fresh copy of each array (page faults and all), while the datablock owns its arrays and
 # reads them as they are. From 3.6 on a read through RNA copies the arrays whichever mesh it is read from (the
 # evaluated mesh, its datablock or the original alike), so there is nothing to gain there. docs/benchmarks.md,
@@ -181,7 +182,7 @@ def evaluated_mesh(obj, depsgraph):
     keys, no deforming parent), its evaluated Mesh datablock: the same data, without the copy a read of the evaluated
     mesh makes."""
     mesh = obj.data
-    if not blender_compat.EVALUATED_MESH_COPIES_ON_READ or obj.original.mode != "OBJECT" or len(obj.modifiers) \
+    if not compat.EVALUATED_MESH_COPIES_ON_READ or obj.original.mode != "OBJECT" or len(obj.modifiers) \
             or not places_only(obj):
         return mesh
     datablock = obj.original.data.evaluated_get(depsgraph)
@@ -193,9 +194,9 @@ def evaluated_mesh(obj, depsgraph):
 
 def read_uv_map(mesh, name):
     """The UV map `name` of `mesh` (corners x 2 float32), or None without it: through the generic float2 attribute
-    where UV maps are one (blender_compat.UV_MAPS_ARE_ATTRIBUTES; on showroom_1.5M, Blender 4.2, about 10x faster than
+    where UV maps are one (compat.UV_MAPS_ARE_ATTRIBUTES; on showroom_1.5M, Blender 4.2, about 10x faster than
     uv_layers[...].data.foreach_get("uv")), else through the UV layer."""
-    if blender_compat.UV_MAPS_ARE_ATTRIBUTES:
+    if compat.UV_MAPS_ARE_ATTRIBUTES:
         values = read_attribute(mesh, name, "FLOAT2", "CORNER", len(mesh.loops))
         if values is not None:
             return values
@@ -235,7 +236,7 @@ def write_bytes_in_place(elements, values):
 # In Edit Mode the evaluated mesh wraps the edit BMesh; reading its arrays through bpy, or obj.to_mesh(), makes Blender
 # convert the whole BMesh into a Mesh, in time proportional to the whole mesh after every move of a few splats
 # (docs/benchmarks.md). The native core walks the BMesh's vertex and face tables in place instead
-# (read_edit_mesh_positions, at the byte offsets blender_compat.BMESH_LAYOUT gives), once its layout has been checked
+# (read_edit_mesh_positions, at the byte offsets compat.BMESH_LAYOUT gives), once its layout has been checked
 # here on the BMesh at hand against bmesh's own Python API. Only the positions are read: the topology must be the one
 # the caller had (checked corner by corner), and face attributes are taken as unchanged (Edit Mode's tools move
 # vertices; an attribute set in Edit Mode reaches the render when Edit Mode is left).
@@ -255,7 +256,7 @@ def _bmesh_layout_holds(bm, address):
     """True when the BMesh at `address` (bmesh's `bm`, element tables ensured) is laid out as BMESH_LAYOUT says: its
     counts, and for a few vertices and faces their table entries, indices, positions, face sizes and loop links, match
     what bmesh's Python API says. Only addresses that the previous checks vouched for are read."""
-    layout = blender_compat.BMESH_LAYOUT
+    layout = compat.BMESH_LAYOUT
     if (_int_at(address + layout["totvert"]), _int_at(address + layout["totface"])) != (len(bm.verts), len(bm.faces)):
         return False
     if not len(bm.verts) or not len(bm.faces):
@@ -264,7 +265,7 @@ def _bmesh_layout_holds(bm, address):
     if not vtable or not ftable or _int_at(address + layout["vtable_tot"]) < len(bm.verts) \
             or _int_at(address + layout["ftable_tot"]) < len(bm.faces):
         return False
-    element = blender_compat.BPY_BMELEM_POINTER_OFFSET
+    element = compat.BPY_BMELEM_POINTER_OFFSET
     for i in np.linspace(0, len(bm.verts) - 1, _SPOT_CHECKS).astype(np.int64):
         vert = bm.verts[int(i)]
         pointer = _pointer_at(vtable + 8 * int(i))
@@ -302,7 +303,7 @@ def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face
     # Clean element tables are what the native read relies on; both calls are free while nothing changed them.
     bm.verts.ensure_lookup_table()
     bm.faces.ensure_lookup_table()
-    address = _pointer_at(id(bm) + blender_compat.BPY_BMESH_POINTER_OFFSET)
+    address = _pointer_at(id(bm) + compat.BPY_BMESH_POINTER_OFFSET)
     if address not in _bmesh_checked:
         try:
             holds = _bmesh_layout_holds(bm, address)
@@ -313,11 +314,11 @@ def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face
             return "unavailable"
         _bmesh_checked.add(address)
     core = native.core()
-    result = core.read_edit_mesh_positions(address, blender_compat.BMESH_LAYOUT, out, corner_vertices,
+    result = core.read_edit_mesh_positions(address, compat.BMESH_LAYOUT, out, corner_vertices,
                                            face_corner_start, face_corner_count)
     if result == "stale":  # (not expected right after ensure_lookup_table, which rebuilds dirty tables)
         bm.verts.ensure_lookup_table()
         bm.faces.ensure_lookup_table()
-        result = core.read_edit_mesh_positions(address, blender_compat.BMESH_LAYOUT, out, corner_vertices,
+        result = core.read_edit_mesh_positions(address, compat.BMESH_LAYOUT, out, corner_vertices,
                                                face_corner_start, face_corner_count)
     return "topology" if result != "read" else "read"

@@ -2,7 +2,7 @@
 # generic attribute, UV maps), for the import memory benchmark (examples/benchmark_import_memory.py) and the test
 # that pins the Gaussian mesh's layout (blender_tests/test_import_memory.py). Any mesh, not only Gaussian ones. And
 # the process's resident memory and its peak, which both of them measure an import by.
-from . import blender_compat
+from . import compat
 
 
 def process_memory_bytes(field):
@@ -48,20 +48,20 @@ def layer_sizes(mesh):
         elements = getattr(mesh, key)
         count = len(elements)
         stride = _stride(elements)
-        if key == "polygons" and blender_compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:
+        if key == "polygons" and compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:
             sizes[name] = (_DOMAIN_OF[key], 4 * (count + 1) if count else 0)  # face offsets, one past the last
         else:
             sizes[name] = (_DOMAIN_OF[key], stride * count)
-    if blender_compat.MESH_POSITIONS_ARE_AN_ATTRIBUTE:
+    if compat.MESH_POSITIONS_ARE_AN_ATTRIBUTE:
         primary.add("position")
-    if blender_compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:
-        primary.update((blender_compat.MESH_CORNER_VERTEX_ATTRIBUTE, ".edge_verts"))
+    if compat.MESH_TOPOLOGY_IN_INT32_ARRAYS:
+        primary.update((compat.MESH_CORNER_VERTEX_ATTRIBUTE, ".edge_verts"))
     for attribute in mesh.attributes:
         if attribute.name in primary:
             continue
         sizes[attribute.name] = (attribute.domain, ATTRIBUTE_TYPE_BYTES.get(attribute.data_type, 0)
                                  * len(attribute.data))
-    if not blender_compat.UV_MAPS_ARE_ATTRIBUTES:
+    if not compat.UV_MAPS_ARE_ATTRIBUTES:
         for uv_layer in mesh.uv_layers:
             sizes[uv_layer.name] = ("CORNER", _stride(uv_layer.data) * len(uv_layer.data))
     return sizes

@@ -9,8 +9,11 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, compact_splats, errors, export_scope, gaussian_mesh, material_reader, modifier_checks, native
-from .progress import StageProgress
+from .. import errors, native
+from ..blender import material_reader
+from ..objects import axes, polygon_mesh, splat_object
+from . import export_scope
+from ..progress import StageProgress
 
 MESH_EXTENSIONS = (".obj", ".ply", ".gltf", ".glb")
 # Object types Blender can turn into a mesh (evaluated_get(...).to_mesh()).
@@ -115,13 +118,13 @@ def _add_gaussian_object(core, scene, materials, obj, depsgraph, transform, node
     name = obj.name
     if options["splat_geometry"] == "POLYGONS":
         mesh = obj.evaluated_get(depsgraph).data if options["apply_modifiers"] else obj.data
-        positions, corner_vertices, starts, counts = gaussian_mesh.mesh_arrays(mesh)
+        positions, corner_vertices, starts, counts = polygon_mesh.mesh_arrays(mesh)
         colors = uvs = None
-        attribute = mesh.color_attributes.get(gaussian_mesh.ATTR_COLOR)
+        attribute = mesh.color_attributes.get(polygon_mesh.ATTR_COLOR)
         if attribute is not None and attribute.domain == "CORNER":
             colors = np.empty(len(mesh.loops) * 4, dtype=np.float32)
             attribute.data.foreach_get("color", colors)
-        uv_layer = mesh.uv_layers.get(gaussian_mesh.UV_MAP)
+        uv_layer = mesh.uv_layers.get(polygon_mesh.UV_MAP)
         if uv_layer is not None:
             uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
             uv_layer.data.foreach_get("uv", uvs)
@@ -129,7 +132,7 @@ def _add_gaussian_object(core, scene, materials, obj, depsgraph, transform, node
                            transform=transform, material=materials.splat_material(), node_matrix=node)
         if not options["gaussian_splatting"]:
             return len(starts)
-    cloud = gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, transform, options["apply_modifiers"])
+    cloud = polygon_mesh.recover_object_gaussians(core, obj, depsgraph, transform, options["apply_modifiers"])
     scene.add_splats(name, cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"],
                      cloud["sh"], vertices_per_polygon=settings.vertices_per_polygon, radius=settings.radius,
                      material=materials.splat_material(), node_matrix=node,
@@ -179,11 +182,11 @@ def export_mesh_file(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, 
     objects = export_scope.objects_in_scope(context, limit_to)
     if not objects:
         raise NothingToExport(f"Nothing to export: no objects are {export_scope.describe(limit_to)}")
-    gaussian_objects = [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
+    gaussian_objects = [obj for obj in objects if splat_object.kind_of(obj) == splat_object.POLYGONS]
     # Compact splat objects are points, not surfaces: they export through File > Export > Gaussian Splats (or as
     # polygons after Object > Convert > RaySplats Gaussians).
     mesh_objects = [obj for obj in objects if include_meshes and obj.type in MESH_LIKE_TYPES
-                    and not gaussian_mesh.is_gaussian_object(obj) and not compact_splats.is_compact_object(obj)]
+                    and not splat_object.is_splat_object(obj)]
     if not gaussian_objects and not mesh_objects:
         raise NothingToExport(f"Nothing to export: no Gaussian splat objects or meshes are "
                               f"{export_scope.describe(limit_to)}")
@@ -216,7 +219,7 @@ def export_mesh_file(context, filepath, limit_to=export_scope.DEFAULT_LIMIT_TO, 
     print(progress.summary())
     stats["gaussians"] = gaussians
     stats["objects"] = len(gaussian_objects) + len(mesh_objects)
-    stats["warnings"] = modifier_checks.export_warnings(gaussian_objects, apply_modifiers) + warnings
+    stats["warnings"] = splat_object.export_warnings(gaussian_objects, apply_modifiers) + warnings
     return stats
 
 

@@ -9,9 +9,10 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from . import color_adjustment, errors, gaussian_mesh, native
-from .mesh_fast_read import read_attribute, read_face_corners
-from .splat_selection import object_mode_data, target_objects
+from .. import errors, native
+from ..objects import color_adjustment, polygon_mesh
+from ..blender.mesh_read import read_attribute, read_face_corners
+from .select_splats import object_mode_data, target_objects
 
 # A joined object becomes a splat object when more than this fraction of its faces carry splat data.
 JOINED_SPLAT_FRACTION = 0.5
@@ -26,7 +27,7 @@ def reduce_sh_degree(obj, degree):
         return before
     mesh = obj.data
     for k in range((degree + 1) ** 2, (before + 1) ** 2):
-        attribute = mesh.attributes.get(gaussian_mesh.sh_attribute_name(k))
+        attribute = mesh.attributes.get(polygon_mesh.sh_attribute_name(k))
         if attribute is not None:
             mesh.attributes.remove(attribute)
     settings.sh_degree = degree
@@ -44,7 +45,7 @@ class OBJECT_OT_raysplats_reduce_sh_degree(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return gaussian_mesh.is_gaussian_object(context.active_object)
+        return polygon_mesh.is_gaussian_object(context.active_object)
 
     @errors.reports_failures("Reduce SH degree failed: ")
     def execute(self, context):
@@ -56,30 +57,30 @@ class OBJECT_OT_raysplats_reduce_sh_degree(bpy.types.Operator):
 
 
 def refresh_corner_colors(obj):
-    """Rewrites the colour attribute the viewport shows (gaussian_mesh.ATTR_COLOR) from the stored SH DC and opacity
+    """Rewrites the colour attribute the viewport shows (polygon_mesh.ATTR_COLOR) from the stored SH DC and opacity
     with the object's colour adjustments. In Edit Mode the edit mesh would overwrite it on leaving: then nothing is
     written and False returned (the panel greys the adjustments out there)."""
     mesh = getattr(obj, "data", None)
     if obj.type != "MESH" or obj.mode == "EDIT" or len(mesh.polygons) == 0:
         return False
     faces = len(mesh.polygons)
-    sh_dc = read_attribute(mesh, gaussian_mesh.sh_attribute_name(0), "FLOAT_VECTOR", "FACE", faces)
+    sh_dc = read_attribute(mesh, polygon_mesh.sh_attribute_name(0), "FLOAT_VECTOR", "FACE", faces)
     if sh_dc is None:
         return False
-    opacity = read_attribute(mesh, gaussian_mesh.ATTR_OPACITY, "FLOAT", "FACE", faces)
+    opacity = read_attribute(mesh, polygon_mesh.ATTR_OPACITY, "FLOAT", "FACE", faces)
     starts = np.empty(faces, dtype=np.int32)
     counts = np.empty(faces, dtype=np.int32)
     read_face_corners(mesh, sizes=counts, starts=starts)
     rgba8 = native.core().splat_corner_colors(sh_dc.reshape(-1, 3), opacity, starts, counts, len(mesh.loops),
                                               **color_adjustment.adjustment_of(obj.raysplats))
-    gaussian_mesh.write_corner_colors(mesh, rgba8)
+    polygon_mesh.write_corner_colors(mesh, rgba8)
     mesh.update()
     return True
 
 
 def splat_faces(mesh):
     """Bool per face: the face carries an imported Gaussian (non-zero rest scales), or None without splat data."""
-    rest = read_attribute(mesh, gaussian_mesh.ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", len(mesh.polygons))
+    rest = read_attribute(mesh, polygon_mesh.ATTR_REST_SCALE, "FLOAT_VECTOR", "FACE", len(mesh.polygons))
     return None if rest is None else np.any(rest.reshape(-1, 3) != 0.0, axis=1)
 
 
@@ -95,7 +96,7 @@ def infer_splat_settings(obj):
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     read_face_corners(mesh, sizes=counts)
     settings.vertices_per_polygon = int(np.bincount(counts[carried]).argmax())
-    uv_layer = mesh.uv_layers.get(gaussian_mesh.UV_MAP)
+    uv_layer = mesh.uv_layers.get(polygon_mesh.UV_MAP)
     if uv_layer is not None:
         uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
         uv_layer.data.foreach_get("uv", uvs)
@@ -103,7 +104,7 @@ def infer_splat_settings(obj):
         radius = float(np.sqrt((uvs.reshape(-1, 2)[corner_of_splat].astype(np.float64) ** 2).sum(axis=1)).max())
         settings.radius = round(radius, 5)
     coefficients = 0
-    while mesh.attributes.get(gaussian_mesh.sh_attribute_name(coefficients)) is not None and coefficients < 16:
+    while mesh.attributes.get(polygon_mesh.sh_attribute_name(coefficients)) is not None and coefficients < 16:
         coefficients += 1
     settings.sh_degree = max(0, math.isqrt(coefficients) - 1)
     return True
@@ -121,7 +122,7 @@ def claim_joined_splats(objects):
         if obj.type != "MESH" or obj.raysplats.is_gaussian or obj.mode == "EDIT":
             continue
         mesh = obj.data
-        if mesh.attributes.get(gaussian_mesh.ATTR_REST_SCALE) is None:
+        if mesh.attributes.get(polygon_mesh.ATTR_REST_SCALE) is None:
             continue
         key = (mesh.as_pointer(), len(mesh.polygons))
         if _joined_checked.get(obj.as_pointer()) == key:
@@ -143,7 +144,7 @@ def show_color_adjustments(objects):
     """Refreshes the colour attribute of the Gaussian objects among `objects` whose adjustments changed since it was
     written (an object seen for the first time is taken as imported: unadjusted colours)."""
     for obj in objects:
-        if not gaussian_mesh.is_gaussian_object(obj) or obj.mode == "EDIT":
+        if not polygon_mesh.is_gaussian_object(obj) or obj.mode == "EDIT":
             continue
         key = color_adjustment.adjustment_key(obj.raysplats)
         shown = _shown_adjustments.get(obj.as_pointer(), color_adjustment.adjustment_key(None))
@@ -158,7 +159,7 @@ _msgbus_owner = object()
 def _adjustments_edited():
     """A colour adjustment was edited (message bus): show it in the viewport, and tag the objects so that the Rendered
     viewport re-syncs them (setting an add-on property tags nothing by itself)."""
-    objects = [obj for obj in bpy.data.objects if gaussian_mesh.is_gaussian_object(obj)]
+    objects = [obj for obj in bpy.data.objects if polygon_mesh.is_gaussian_object(obj)]
     show_color_adjustments(objects)
     for obj in objects:
         obj.update_tag()
@@ -168,7 +169,7 @@ def _shading_edited():
     """An object's Gaussian shading was edited (message bus): tag the Gaussian objects so that the Rendered viewport
     re-syncs them (engine.sync applies the new shading in place)."""
     for obj in bpy.data.objects:
-        if gaussian_mesh.is_gaussian_object(obj):
+        if polygon_mesh.is_gaussian_object(obj):
             obj.update_tag()
 
 
@@ -176,7 +177,7 @@ def subscribe_to_adjustments():
     """Message-bus subscriptions to the colour adjustments of every object's settings. The message bus, not update=
     callbacks: a property with an update callback makes Blender 4.2 as a Python module (the bpy wheel the tests run)
     crash at exit, even once unregistered."""
-    from .properties import RaySplatsObjectSettings
+    from ..objects.object_settings import RaySplatsObjectSettings
     bpy.msgbus.clear_by_owner(_msgbus_owner)
     for name in color_adjustment.ADJUSTMENT_NAMES:
         bpy.msgbus.subscribe_rna(key=(RaySplatsObjectSettings, name), owner=_msgbus_owner, args=(),

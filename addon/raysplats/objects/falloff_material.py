@@ -3,8 +3,8 @@
 # Preview (EEVEE) shows the splats as they are.
 import bpy
 
-from . import blender_compat
-from .gaussian_mesh import ATTR_COLOR, UV_MAP
+from ..blender import compat
+from .polygon_mesh import ATTR_COLOR, UV_MAP
 
 MATERIAL_NAME = "RaySplats Gaussian"
 
@@ -74,7 +74,7 @@ def set_eevee_transparency(material, sorted_blending=False):
     is drawn over its front. It is kept for comparisons (examples/material_preview_agreement.py).
     Shadows follow the alpha (Hashed on 3.x, transparent shadows on 4.2+), as the renderer's shadow rays see
     the splats' transmittance."""
-    if blender_compat.MATERIAL_HAS_SURFACE_RENDER_METHOD:
+    if compat.MATERIAL_HAS_SURFACE_RENDER_METHOD:
         material.surface_render_method = "BLENDED" if sorted_blending else "DITHERED"
         material.use_transparent_shadow = True
     else:

@@ -7,10 +7,11 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import axes, compact_splats, errors, export_scope, gaussian_mesh, modifier_checks, native, native_splats
-from .io_import import (open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text,
-                        with_splat_extension, writable_splat_formats)
-from .progress import StageProgress
+from .. import errors, native
+from ..objects import axes, splat_object
+from . import export_scope
+from .format_table import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text, with_splat_extension
+from ..progress import StageProgress
 
 
 class NothingToExport(ValueError):
@@ -18,39 +19,19 @@ class NothingToExport(ValueError):
 
 
 def gaussian_objects(context, limit_to=export_scope.DEFAULT_LIMIT_TO):
-    """The splat objects in scope: polygon Gaussian objects and compact splat objects."""
-    return [obj for obj in export_scope.objects_in_scope(context, limit_to)
-            if gaussian_mesh.is_gaussian_object(obj) or compact_splats.is_compact_object(obj)]
-
-
-def _object_up_axis(obj):
-    if gaussian_mesh.is_gaussian_object(obj):
-        return obj.raysplats.up_axis
-    return native_splats.object_up_axis(obj)
-
-
-def _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers):
-    """One object's Gaussians mapped by mesh_to_output (its own coordinates -> the file's), with recovery stats."""
-    if gaussian_mesh.is_gaussian_object(obj):
-        return gaussian_mesh.recover_object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
-    cloud = compact_splats.evaluated_cloud(obj, depsgraph, apply_modifiers)
-    if cloud is None:
-        return dict(compact_splats.empty_cloud(0), stats={})
-    part = compact_splats.transformed_cloud(cloud, mesh_to_output)
-    part["stats"] = {}
-    return part
+    """The splat objects in scope, of every kind (splat_object.py)."""
+    return [obj for obj in export_scope.objects_in_scope(context, limit_to) if splat_object.is_splat_object(obj)]
 
 
 def recover_scene_gaussians(context, objects, apply_modifiers=True, up_axis="AUTO"):
     """Gaussians of all given objects in the file convention (up_axis, or each object's own with "AUTO"),
     concatenated; SH padded to the highest degree. Returns (arrays dict, summed stats)."""
-    core = native.core()
     depsgraph = context.evaluated_depsgraph_get()
     parts, stats = [], {}
     for obj in objects:
-        axis = _object_up_axis(obj) if up_axis == "AUTO" else up_axis
-        mesh_to_output = axes.mesh_to_file(obj, axis)
-        part = _object_gaussians(core, obj, depsgraph, mesh_to_output, apply_modifiers)
+        axis = splat_object.up_axis_of(obj) if up_axis == "AUTO" else up_axis
+        # (each object's own coordinates -> the file's)
+        part = splat_object.gaussians_of(obj, depsgraph, axes.mesh_to_file(obj, axis), apply_modifiers)
         for key, value in part["stats"].items():
             stats[key] = stats.get(key, 0) + value
         parts.append(part)
@@ -94,7 +75,7 @@ def export_gaussian_splats(context, filepath, limit_to=export_scope.DEFAULT_LIMI
         core.write_splats(filepath, arrays["positions"], arrays["rotations"], arrays["scales"],
                           arrays["opacities"], arrays["sh"])
     print(progress.summary())
-    stats["warnings"] = modifier_checks.export_warnings(objects, apply_modifiers)
+    stats["warnings"] = splat_object.export_warnings(objects, apply_modifiers)
     return len(arrays["opacities"]), stats, progress.times
 
 

@@ -2,7 +2,7 @@
 # Active Collection) as one drop-down shared by the splat and the mesh exporters. Visible is the default: an export
 # writes what the user sees, and an object the user hid is never exported unless asked for.
 
-from . import gaussian_mesh
+from ..objects import polygon_mesh
 
 LIMIT_TO_ITEMS = (
     ("VISIBLE", "Visible Objects", "Objects visible in the viewport (hidden objects and excluded collections are "
@@ -33,7 +33,7 @@ def objects_in_scope(context, limit_to=DEFAULT_LIMIT_TO):
         chosen = set(selected)
         for obj in selected:
             if obj.type == "EMPTY":
-                selected += [child for child in obj.children if child not in chosen and gaussian_mesh.is_gaussian_object(child)]
+                selected += [child for child in obj.children if child not in chosen and polygon_mesh.is_gaussian_object(child)]
                 chosen.update(obj.children)
         return selected
     if limit_to == "VISIBLE":

@@ -3,7 +3,7 @@
 # core (native/include/raysplats/color_adjustment.h) wherever Gaussians are recovered (gaussian_mesh.recover_from_arrays:
 # the render, the viewport and every export), and to the corner colour attribute that Solid and Material Preview
 # show (splat_tools.refresh_corner_colors). The stored SH stay as imported, so adjusting is never lossy.
-from . import native
+from .. import native
 
 ADJUSTMENT_NAMES = ("exposure", "brightness", "saturation", "hue", "temperature")
 IDENTITY = {"exposure": 0.0, "brightness": 0.0, "saturation": 1.0, "hue": 0.0, "temperature": 0.0}

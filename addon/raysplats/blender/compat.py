@@ -124,6 +124,45 @@ POINTCLOUD_CAN_RESIZE = hasattr(bpy.types, "PointCloud") and "resize" in bpy.typ
 # would be drawn as dots).
 SPLATS_AS_POINT_CLOUD = HAS_NATIVE_GAUSSIAN_SPLATS and POINTCLOUD_CAN_RESIZE
 
+
+# A splat datablock of points is a PointCloud, or a Mesh whose vertices are the points (where Blender has no splat
+# point cloud, and what older files hold). These are the one place that tells the two apart.
+def points_are_vertices(data):
+    """True for a Mesh whose vertices are the points, False for a PointCloud."""
+    return isinstance(data, bpy.types.Mesh)
+
+
+def points_of(data):
+    """The point elements of a splat datablock: a mesh's vertices or a point cloud's points."""
+    return data.vertices if points_are_vertices(data) else data.points
+
+
+def point_count(data):
+    return len(points_of(data))
+
+
+def add_points(data, count):
+    """Adds `count` points (zero) at the end of a splat datablock."""
+    if points_are_vertices(data):
+        data.vertices.add(count)
+    else:
+        data.resize(point_count(data) + count)
+
+
+def remove_unused_data(data):
+    """Removes a Mesh or PointCloud datablock when no object uses it any more."""
+    if data is not None and data.users == 0:
+        (bpy.data.meshes if points_are_vertices(data) else bpy.data.pointclouds).remove(data)
+
+
+def tag_points_changed(data):
+    """Tells Blender the points of a splat datablock changed: a mesh recomputes what it derives (Mesh.update); a
+    PointCloud has no update(), only the depsgraph tag."""
+    if points_are_vertices(data):
+        data.update()
+    else:
+        data.update_tag()
+
 _ATTRIBUTE_TYPES = set(bpy.types.Attribute.bl_rna.properties["data_type"].enum_items.keys())
 # Attribute types of the splat layout: 5.3 stores "radiance:base" as a float4 attribute (FLOAT4, a type 5.0 and older
 # lack) and "rotation" as a quaternion (QUATERNION since 4.0). Where a type is missing, the same four floats go into a

@@ -1,6 +1,6 @@
 # Blender materials -> indices in the native RenderScene, each converted once, by the add-on's one material reader
 # (material_reader.py, docs/design.md §6), which the mesh exporter uses too.
-from ..material_reader import ImageCache, read_material
+from ..blender.material_reader import ImageCache, read_material
 
 
 class MaterialTable:

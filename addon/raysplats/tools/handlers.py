@@ -4,7 +4,7 @@
 import bpy
 from bpy.app.handlers import persistent
 
-from . import splat_tools, splat_transform
+from . import exact_apply, upkeep
 
 
 @persistent
@@ -15,18 +15,18 @@ def on_depsgraph_update(scene, depsgraph):
                if isinstance(update.id, bpy.types.Object)]
     if updates:
         objects = [obj for obj, _ in updates]
-        splat_tools.claim_joined_splats([obj for obj in objects
+        upkeep.claim_joined_splats([obj for obj in objects
                                          if obj.type == "MESH" and not obj.raysplats.is_gaussian])
-        splat_tools.show_color_adjustments(objects)
-        splat_transform.notice_corner_only_apply(objects, {obj.as_pointer() for obj, geometry in updates if geometry})
+        upkeep.show_color_adjustments(objects)
+        exact_apply.notice_corner_only_apply(objects, {obj.as_pointer() for obj, geometry in updates if geometry})
 
 
 @persistent
 def after_load(*args):
     """load_post: what was remembered about the previous file's objects is forgotten, the subscriptions renewed."""
-    splat_transform.forget_placements()
-    splat_tools.forget_objects()
-    splat_tools.subscribe_to_adjustments()
+    exact_apply.forget_placements()
+    upkeep.forget_objects()
+    upkeep.subscribe_to_adjustments()
 
 
 HANDLERS = ((bpy.app.handlers.depsgraph_update_post, on_depsgraph_update), (bpy.app.handlers.load_post, after_load))

@@ -14,14 +14,14 @@
 
 import numpy as np
 
-from . import blender_compat
+from . import compat
 
 # What the renderer takes for a keyword read_material leaves out, and for a slot without material: the defaults of
 # the native RenderScene.add_material (native/python/render_bindings.cpp).
 RENDERER_DEFAULTS = {"base_color": (0.8, 0.8, 0.8), "metallic": 0.0, "roughness": 0.5, "alpha": 1.0,
                      "emission_color": (0.0, 0.0, 0.0), "emission_strength": 1.0}
 # Principled v1 (Blender 3.x) has the principled (Disney) diffuse, v2 (4.0) a Lambertian one (see blender_compat).
-PRINCIPLED_VERSION = blender_compat.PRINCIPLED_VERSION
+PRINCIPLED_VERSION = compat.PRINCIPLED_VERSION
 PRINCIPLED_DIFFUSE = "PRINCIPLED" if PRINCIPLED_VERSION == "V1" else "LAMBERT"
 # Principled lobes RaySplats leaves out, by the inputs that switch them on (names of Blender 3.x and 4.x).
 _UNSUPPORTED_LAYERS = {"V1": ("Subsurface", "Sheen", "Clearcoat"),

@@ -7,15 +7,12 @@ import numpy as np
 from bpy.props import BoolProperty
 from mathutils import Matrix
 
-from . import color_adjustment, compact_splats, errors, gaussian_mesh, native
-from .splat_tools import refresh_corner_colors
+from .. import errors, native
+from ..blender import compat
+from ..objects import color_adjustment, compact_points, polygon_mesh, splat_object
+from ..objects.modifier_checks import CORNER_ONLY_APPLY_PROPERTY
+from .upkeep import refresh_corner_colors
 
-# Blender's own Apply Transform (object.transform_apply) moves only a splat object's polygon corners: exact for
-# rotations and uniform scales, but a non-uniform scale or a shear changes the Gaussians' thickness (median
-# x1.53 for a (1, 2, 1) scale on a real scene). It cannot be replaced for scripts, so where it happened it is recorded
-# on the object and named in the render and export reports (modifier_checks.fidelity_warnings); Ctrl+A offers the exact
-# one.
-CORNER_ONLY_APPLY_PROPERTY = "raysplats_corner_only_apply"
 # Gaussian objects' placement when last seen (original object pointer -> (world matrix, a few vertices in world space)).
 _placements = {}
 _SAMPLED_VERTICES = 4
@@ -23,7 +20,7 @@ _SAMPLED_VERTICES = 4
 
 def _placement(obj):
     world = np.array(obj.matrix_world, dtype=np.float64)
-    vertices = obj.data.vertices if hasattr(obj.data, "vertices") else obj.data.points  # (a splat point cloud)
+    vertices = compat.points_of(obj.data)
     step = max(1, len(vertices) // _SAMPLED_VERTICES)
     local = np.array([tuple(vertices[i].co) for i in range(0, len(vertices), step)][:_SAMPLED_VERTICES])
     return world, (local @ world[:3, :3].T + world[:3, 3]) if len(local) else local, len(vertices)
@@ -39,7 +36,7 @@ def notice_corner_only_apply(objects, geometry_changed):
     while their vertices (a point object's centres) stayed where they were in the world (what Apply Transform does), by
     a map that is not a similarity (rotations and uniform scales keep the Gaussians exact)."""
     for obj in objects:
-        if not is_splat_object(obj) or obj.mode == "EDIT":
+        if not splat_object.is_splat_object(obj) or obj.mode == "EDIT":
             continue
         now = _placement(obj)
         before = _placements.get(obj.as_pointer())
@@ -55,11 +52,6 @@ def notice_corner_only_apply(objects, geometry_changed):
             obj[CORNER_ONLY_APPLY_PROPERTY] = True
 
 
-def is_splat_object(obj):
-    """A splat object whose transform the exact Apply bakes: polygon Gaussians, or compact points (ours or the
-    splat point clouds Blender's own importers make)."""
-    return gaussian_mesh.is_gaussian_object(obj) or compact_splats.is_compact_object(obj)
-
 
 class OBJECT_OT_raysplats_apply_transform(bpy.types.Operator):
     """Apply the object's transform to its Gaussians exactly (full covariance, thickness and view-dependent colour
@@ -74,11 +66,11 @@ class OBJECT_OT_raysplats_apply_transform(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.mode == "OBJECT" and is_splat_object(context.active_object)
+        return context.mode == "OBJECT" and splat_object.is_splat_object(context.active_object)
 
     @errors.reports_failures("Apply transform failed: ")
     def execute(self, context):
-        objects = [obj for obj in (context.selected_objects or [context.active_object]) if is_splat_object(obj)]
+        objects = [obj for obj in (context.selected_objects or [context.active_object]) if splat_object.is_splat_object(obj)]
         for obj in objects:
             count = apply_transform_exactly(obj, self.location, self.rotation, self.scale)
             self.report({"INFO"}, f"'{obj.name}': transform applied to {count:,} Gaussians")
@@ -97,14 +89,14 @@ def bake_matrix_into_gaussians(obj, matrix):
     if mesh.users > 1:
         raise ValueError(f"'{obj.name}': its mesh '{mesh.name}' is shared by {mesh.users} users; make it single "
                          "user first (Object > Relations > Make Single User)")
-    cloud = gaussian_mesh.recover_from_arrays(core, gaussian_mesh.mesh_arrays(mesh),
-                                              gaussian_mesh.face_attributes(mesh, settings.sh_degree), settings,
+    cloud = polygon_mesh.recover_from_arrays(core, polygon_mesh.mesh_arrays(mesh),
+                                              polygon_mesh.face_attributes(mesh, settings.sh_degree), settings,
                                               np.asarray(matrix, dtype=np.float64), adjust_colors=False)
     polygons = core.gaussians_to_polygons(cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"],
                                           cloud["sh"], vertices_per_polygon=settings.vertices_per_polygon,
                                           radius=settings.radius)
     mesh.clear_geometry()
-    gaussian_mesh.fill_mesh(mesh, polygons)
+    polygon_mesh.fill_mesh(mesh, polygons)
     if not color_adjustment.is_identity(settings):
         refresh_corner_colors(obj)
     return len(mesh.polygons)
@@ -129,10 +121,10 @@ def apply_transform_exactly(obj, location, rotation, scale):
     if not scale:
         kept = kept @ Matrix.Diagonal(sca.to_4d())
     applied = kept.inverted_safe() @ basis
-    if gaussian_mesh.is_gaussian_object(obj):
+    if splat_object.kind_of(obj) == splat_object.POLYGONS:
         count = bake_matrix_into_gaussians(obj, np.array(applied, dtype=np.float64))
     else:
-        count = compact_splats.bake_matrix_into_points(obj, np.array(applied, dtype=np.float64))
+        count = compact_points.bake_matrix_into_points(obj, np.array(applied, dtype=np.float64))
     obj.matrix_basis = kept
     # The rebuilt mesh holds exact Gaussians again: no longer the corners of an earlier inexact apply, and this
     # placement change is not Blender's apply.

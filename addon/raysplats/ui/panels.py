@@ -1,9 +1,11 @@
 # Where a splat object's settings and tools are shown: the Object Properties panel "Gaussian Splats"
 # (Object.raysplats), the 3D view's sidebar tab "Splats", and the entries in Edit Mode's Select and Mesh menus and in
-# Object > Apply (and Ctrl+A). The tools themselves are in splat_selection.py, splat_tools.py and splat_transform.py.
+# Object > Apply (and Ctrl+A). The tools themselves are in select_splats.py, upkeep.py and exact_apply.py.
 import bpy
 
-from . import compact_splats, gaussian_mesh, io_import, native_splats, splat_selection, splat_tools, splat_transform
+from ..io import import_policy
+from ..objects import polygon_mesh, splat_object
+from ..tools import exact_apply, region_editing, select_splats, upkeep
 
 SIDEBAR_CATEGORY = "Splats"
 
@@ -11,23 +13,23 @@ SIDEBAR_CATEGORY = "Splats"
 def _draw_compact_settings(layout, obj):
     """A compact splat object (one point per Gaussian): what it is, and the way to edit a region of it."""
     column = layout.column()
-    column.label(text=f"{compact_splats.point_count(obj.data):,} Gaussians as {io_import.POINTS_NAME.lower()}")
-    column.label(text=f"Up axis in the file: {native_splats.object_up_axis(obj)}")
-    layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
+    column.label(text=f"{splat_object.shown_count(obj):,} Gaussians as {import_policy.POINTS_NAME.lower()}")
+    column.label(text=f"Up axis in the file: {splat_object.up_axis_of(obj)}")
+    layout.operator(region_editing.OBJECT_OT_raysplats_edit_region.bl_idname, icon="MESH_DATA")
     # A region's Gaussians are out of the compact object (not rendered, not exported) until merged back; a region
     # deleted without merging keeps them out until restored.
     # (Short lines: the sidebar is narrow, and a long label is cut in its middle.)
-    regions = compact_splats.open_regions(obj)
+    regions = region_editing.open_regions(obj)
     if regions:
         layout.label(text="Out in regions:")  # (their Gaussians render and export from there)
     for region_id, name in regions.items():
-        region = compact_splats.region_object(obj, region_id)
+        region = region_editing.region_object(obj, region_id)
         if region is not None:
             layout.label(text=region.name, icon="MESH_DATA")
         else:
             layout.label(text=f"{name} (deleted)", icon="ERROR")
-    if compact_splats.orphaned_regions(obj):
-        layout.operator(compact_splats.OBJECT_OT_raysplats_restore_regions.bl_idname, icon="LOOP_BACK")
+    if region_editing.orphaned_regions(obj):
+        layout.operator(region_editing.OBJECT_OT_raysplats_restore_regions.bl_idname, icon="LOOP_BACK")
     if obj.mode != "EDIT":
         layout.label(text="Select a region's points in Edit Mode first", icon="INFO")
 
@@ -36,22 +38,22 @@ def _draw_settings(layout, obj):
     settings = obj.raysplats
     layout.use_property_split = True
     layout.use_property_decorate = False
-    if compact_splats.is_compact_object(obj):
+    if splat_object.kind_of(obj) == splat_object.POINTS:
         _draw_compact_settings(layout, obj)
         return
     if not settings.is_gaussian:
         # Marking reads K, rho and the SH degree back from the splat data, which a bare check box would not.
-        if obj.type == "MESH" and obj.data.attributes.get(gaussian_mesh.ATTR_REST_SCALE) is not None:
+        if obj.type == "MESH" and obj.data.attributes.get(polygon_mesh.ATTR_REST_SCALE) is not None:
             layout.label(text="This mesh carries splat data", icon="INFO")
-            layout.operator(splat_tools.OBJECT_OT_raysplats_mark_splats.bl_idname)
+            layout.operator(upkeep.OBJECT_OT_raysplats_mark_splats.bl_idname)
         else:
             layout.label(text="Not a Gaussian splat object")
         return
     layout.prop(settings, "is_gaussian", text="Gaussian Splats")
     column = layout.column()
     column.label(text=f"{len(obj.data.polygons):,} Gaussians")
-    pieces = gaussian_mesh.scene_pieces(obj.parent)
-    if obj in pieces:  # a piece of a split import (io_import.add_gaussian_pieces)
+    pieces = polygon_mesh.scene_pieces(obj.parent)
+    if obj in pieces:  # a piece of a split import (creation.add_gaussian_pieces)
         total = sum(len(piece.data.polygons) for piece in pieces)
         # (Short: the sidebar and the properties editor are narrow; the scene's empty is the parent in the outliner.)
         column.label(text=f"Piece {pieces.index(obj) + 1} of {len(pieces)}, {total:,} in all")
@@ -65,9 +67,9 @@ def _draw_settings(layout, obj):
     layout.prop(settings, "source_file")
     layout.prop(settings, "up_axis")
     layout.prop(settings, "gaussian_shading")
-    target = compact_splats.region_target(obj)
+    target = region_editing.region_target(obj)
     if target is not None:
-        layout.operator(compact_splats.OBJECT_OT_raysplats_merge_region.bl_idname,
+        layout.operator(region_editing.OBJECT_OT_raysplats_merge_region.bl_idname,
                         text=f"Merge Back into '{target.name}'", icon="POINTCLOUD_DATA")
 
 
@@ -105,7 +107,7 @@ class OBJECT_PT_raysplats_colors(bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return gaussian_mesh.is_gaussian_object(context.object)
+        return polygon_mesh.is_gaussian_object(context.object)
 
     def draw(self, context):
         _draw_colors(self.layout, context.object)
@@ -118,7 +120,7 @@ class _SidebarPanel:
 
     @classmethod
     def poll(cls, context):
-        return gaussian_mesh.is_gaussian_object(context.active_object)
+        return polygon_mesh.is_gaussian_object(context.active_object)
 
 
 class VIEW3D_PT_raysplats(_SidebarPanel, bpy.types.Panel):
@@ -139,14 +141,14 @@ class VIEW3D_PT_raysplats_select(_SidebarPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         column = layout.column(align=True)
-        for cls in (splat_selection.MESH_OT_raysplats_select_opacity, splat_selection.MESH_OT_raysplats_select_size,
-                    splat_selection.MESH_OT_raysplats_select_color, splat_selection.MESH_OT_raysplats_select_floaters):
+        for cls in (select_splats.MESH_OT_raysplats_select_opacity, select_splats.MESH_OT_raysplats_select_size,
+                    select_splats.MESH_OT_raysplats_select_color, select_splats.MESH_OT_raysplats_select_floaters):
             column.operator(cls.bl_idname)
         box = layout.box()
         box.prop(context.scene.raysplats_tools, "crop_object")
         row = box.row(align=True)
-        row.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside").inside = True
-        row.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside").inside = False
+        row.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside").inside = True
+        row.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside").inside = False
 
 
 class VIEW3D_PT_raysplats_clean_up(_SidebarPanel, bpy.types.Panel):
@@ -155,9 +157,9 @@ class VIEW3D_PT_raysplats_clean_up(_SidebarPanel, bpy.types.Panel):
 
     def draw(self, context):
         column = self.layout.column(align=True)
-        column.operator(splat_selection.MESH_OT_raysplats_delete_selected.bl_idname, icon="X")
-        column.operator(splat_tools.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
-        column.operator(splat_transform.OBJECT_OT_raysplats_apply_transform.bl_idname)
+        column.operator(select_splats.MESH_OT_raysplats_delete_selected.bl_idname, icon="X")
+        column.operator(upkeep.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
+        column.operator(exact_apply.OBJECT_OT_raysplats_apply_transform.bl_idname)
 
 
 class VIEW3D_PT_raysplats_colors(_SidebarPanel, bpy.types.Panel):
@@ -173,11 +175,11 @@ class VIEW3D_MT_raysplats_select(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
-        for cls in (splat_selection.MESH_OT_raysplats_select_opacity, splat_selection.MESH_OT_raysplats_select_size,
-                    splat_selection.MESH_OT_raysplats_select_color, splat_selection.MESH_OT_raysplats_select_floaters):
+        for cls in (select_splats.MESH_OT_raysplats_select_opacity, select_splats.MESH_OT_raysplats_select_size,
+                    select_splats.MESH_OT_raysplats_select_color, select_splats.MESH_OT_raysplats_select_floaters):
             layout.operator(cls.bl_idname)
-        layout.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside Crop Box").inside = True
-        layout.operator(splat_selection.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside Crop Box").inside = False
+        layout.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside Crop Box").inside = True
+        layout.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside Crop Box").inside = False
 
 
 class VIEW3D_MT_raysplats_mesh(bpy.types.Menu):
@@ -185,27 +187,28 @@ class VIEW3D_MT_raysplats_mesh(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
-        layout.operator(splat_selection.MESH_OT_raysplats_delete_selected.bl_idname)
-        layout.operator(splat_tools.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
+        layout.operator(select_splats.MESH_OT_raysplats_delete_selected.bl_idname)
+        layout.operator(upkeep.OBJECT_OT_raysplats_reduce_sh_degree.bl_idname)
 
 
 def _draw_select_menu(self, context):
-    if gaussian_mesh.is_gaussian_object(context.edit_object):
+    if polygon_mesh.is_gaussian_object(context.edit_object):
         self.layout.separator()
         self.layout.menu(VIEW3D_MT_raysplats_select.__name__)
 
 
 def _draw_mesh_menu(self, context):
-    if gaussian_mesh.is_gaussian_object(context.edit_object):
+    kind = splat_object.kind_of(context.edit_object)
+    if kind == splat_object.POLYGONS:
         self.layout.separator()
         self.layout.menu(VIEW3D_MT_raysplats_mesh.__name__)
-    elif compact_splats.is_compact_object(context.edit_object):
+    elif kind == splat_object.POINTS:
         self.layout.separator()
-        self.layout.operator(compact_splats.OBJECT_OT_raysplats_edit_region.bl_idname)
+        self.layout.operator(region_editing.OBJECT_OT_raysplats_edit_region.bl_idname)
 
 
 def _draw_exact_apply(layout):
-    operator = splat_transform.OBJECT_OT_raysplats_apply_transform.bl_idname
+    operator = exact_apply.OBJECT_OT_raysplats_apply_transform.bl_idname
     for text, flags in (("Location", (True, False, False)), ("Rotation", (False, True, False)),
                         ("Scale", (False, False, True)), ("All Transforms", (True, True, True)),
                         ("Rotation & Scale", (False, True, True))):
@@ -217,7 +220,7 @@ def _draw_apply_menu(self, context):
     # Object > Apply: Blender's own Apply moves only the polygons' corners (the centres of points), which loses a
     # Gaussian's thickness and its exact shape under a non-uniform scale; for splat objects the exact entries come
     # first.
-    if splat_transform.is_splat_object(context.active_object) and not getattr(context, "raysplats_exact_shown", False):
+    if splat_object.is_splat_object(context.active_object) and not getattr(context, "raysplats_exact_shown", False):
         self.layout.label(text="Gaussian Splats (exact)")
         _draw_exact_apply(self.layout)
         self.layout.separator()
@@ -231,7 +234,7 @@ class VIEW3D_MT_raysplats_apply(bpy.types.Menu):
 
     def draw(self, context):
         layout = self.layout
-        if not splat_transform.is_splat_object(context.active_object):
+        if not splat_object.is_splat_object(context.active_object):
             layout.menu_contents("VIEW3D_MT_object_apply")
             return
         _draw_exact_apply(layout)

@@ -1,15 +1,7 @@
-# Compact splat objects: a whole scene as one point per Gaussian carrying its attributes, in Blender 5.3's
-# own splat layout (native_splats.py: a Gaussian-splat point cloud where Blender has one, else mesh vertices), for
-# scenes too big to hold as editable polygons. About 56 bytes per Gaussian in Blender (degree 0) against ~1 KB as
-# octagons.
-# - Rendering (engine/sync.py) and export (io_export.py) read the points' attributes and map each Gaussian by the
-#   object's transform exactly (core transform_gaussians: centre, covariance A Σ Aᵀ, SH turned by the rotation).
-# - Modifiers, shape keys and armatures that move points move the centres only: a Gaussian keeps its shape and
-#   orientation (in object space), as Blender's own splats do. Scaling or bending a compact object through a modifier
-#   does not stretch its Gaussians; edit such a region as polygons instead.
-# - To edit Gaussians as polygons, select a region's points (Edit Mode: box, lasso, ...) and run Edit Selected as
-#   Polygons: those Gaussians move into a new polygon object in the same place, editable with every Blender tool;
-#   Merge Polygons Back returns them (with their edits) to the compact object.
+# Editing a region of a compact splat object as polygons, and merging it back in place.
+# - Select a region's points (Edit Mode: box, lasso, ...) and run Edit Selected as Polygons: those Gaussians move
+#   into a new polygon object in the same place, editable with every Blender tool; Merge Polygons Back returns them
+#   (with their edits) to the compact object.
 # - A region is taken and returned in place, in time and memory that follow the region, not the scene: its points
 #   stay in the compact object, marked as taken (the point attribute REGION_MARK: the region's id), and render, export
 #   and the next selection skip them; Merge Back writes the edited Gaussians into those very rows (faces carry their
@@ -23,8 +15,12 @@ import random
 import bpy
 import numpy as np
 
-from . import blender_compat, errors, gaussian_mesh, native, native_splats
-from .io_import import add_gaussian_object, link_as_only_selected, remove_gaussian_object
+from .. import errors, native
+from ..blender import compat
+from ..objects import blender_splats, polygon_mesh, splat_object
+from ..objects.compact_points import REGION_MARK, REMOVED_MARK, is_compact_object, region_marks, selected_points
+from ..objects.creation import add_gaussian_object, remove_gaussian_object
+
 
 # On a region's polygon object: the name of the compact object it was taken from (where Merge Back returns it).
 REGION_OF_PROPERTY = "raysplats_region_of"
@@ -33,10 +29,6 @@ REGION_ID_PROPERTY = "raysplats_region_id"
 REGION_SIZE_PROPERTY = "raysplats_region_size"
 # On a compact object: {str(region id): name of the region object} for each region taken from it and not merged back.
 OPEN_REGIONS_PROPERTY = "raysplats_open_regions"
-# Point attribute of a compact object: 0 for the points it shows, a region's id for the points that region holds,
-# REMOVED_MARK for points a merge removed (skipped everywhere; reused by the next merge that gains Gaussians).
-REGION_MARK = "raysplats_region"
-REMOVED_MARK = -1
 # Face attribute of a region object: 1 + the index (among the region's points, in order) of the point each face was
 # made from; 0 for faces that came from elsewhere (joined objects).
 REGION_SLOT = "raysplats_region_slot"
@@ -44,163 +36,6 @@ REGION_SLOT = "raysplats_region_slot"
 # corner (a vertex, an edge and a corner each, with their layers), about 400 bytes a corner, so K = 4 enters in half
 # the time and memory of K = 8 (examples/benchmark_big_scene.py; docs/benchmarks.md, Editing big scenes).
 REGION_VERTICES_PER_POLYGON = 4
-CLOUD_KEYS = ("positions", "rotations", "scales", "opacities", "sh")
-
-
-def is_compact_object(obj):
-    """A splat object of points (ours, or Blender 5.3's own splats)."""
-    return native_splats.is_native_splat_object(obj)
-
-
-def point_count(data):
-    """The points of a compact datablock, taken and removed ones included (see gaussian_count)."""
-    return len(data.points) if hasattr(data, "points") else len(data.vertices)
-
-
-def region_marks(data):
-    """The REGION_MARK of each point (int32, a copy), or None when no region was ever taken from `data`."""
-    attribute = data.attributes.get(REGION_MARK)
-    if attribute is None or attribute.data_type != "INT" or attribute.domain != "POINT":
-        return None
-    marks = np.empty(point_count(data), dtype=np.int32)
-    attribute.data.foreach_get("value", marks)
-    return marks
-
-
-def shown_points(data):
-    """Boolean mask of the points `data` shows (neither out in a region nor removed), or None for all of them."""
-    marks = region_marks(data)
-    if marks is None or not marks.any():
-        return None
-    return marks == 0
-
-
-def gaussian_count(data):
-    """The Gaussians a compact datablock shows (renders, exports): its points less those out in a region or
-    removed."""
-    shown = shown_points(data)
-    return point_count(data) if shown is None else int(shown.sum())
-
-
-def add_compact_object(context, name, cloud, up_axis, source_file=""):
-    """A new compact splat object holding `cloud` (the core's dict) in object space, in the active collection,
-    selected and active; its transform is left as identity for the caller. A failure leaves nothing behind."""
-    data = native_splats.new_native_splat_data(name, cloud)
-    obj = None
-    try:
-        obj = bpy.data.objects.new(name, data)
-        obj[native_splats.UP_AXIS_PROPERTY] = up_axis
-        obj.raysplats.source_file = source_file
-        if not hasattr(data, "points"):
-            # Blender draws a mesh's loose vertices only in Edit Mode: the bounds show where the scene is in Solid
-            # view (Rendered view shows the splats; Edit Mode shows every point, to select a region).
-            obj.display_type = "BOUNDS"
-        link_as_only_selected(context, obj)
-    except BaseException:
-        if obj is not None:
-            bpy.data.objects.remove(obj)
-        _remove_data(data)
-        raise
-    return obj
-
-
-def _remove_data(data):
-    if data is not None and data.users == 0:
-        (bpy.data.meshes if isinstance(data, bpy.types.Mesh) else bpy.data.pointclouds).remove(data)
-
-
-def object_cloud(obj, data=None):
-    """The Gaussians a compact object shows (its own data, or `data`, e.g. the evaluated one) in object space: the
-    points out in a region or removed left out. None when it shows none."""
-    data = obj.data if data is None else data
-    if point_count(data) == 0:
-        return None
-    shown = shown_points(data)
-    if shown is not None and not shown.any():
-        return None
-    cloud = native_splats.read_native_splats(data)
-    if shown is not None:
-        for key in CLOUD_KEYS:
-            cloud[key] = np.ascontiguousarray(cloud[key][shown])
-    return cloud
-
-
-def evaluated_cloud(obj, depsgraph, apply_modifiers=True):
-    """object_cloud of the object as the depsgraph evaluated it (modifiers moving the centres), Edit Mode included."""
-    if obj.mode == "EDIT":
-        obj.update_from_editmode()
-    return object_cloud(obj, obj.evaluated_get(depsgraph).data if apply_modifiers else obj.data)
-
-
-def transformed_cloud(cloud, matrix):
-    """`cloud` mapped by a 4x4 matrix exactly (the identity: unchanged)."""
-    mapped = native.core().transform_gaussians(*(cloud[key] for key in CLOUD_KEYS),
-                                               np.ascontiguousarray(matrix, dtype=np.float64))
-    return mapped
-
-
-def bake_matrix_into_points(obj, matrix):
-    """Rewrites every point of compact object `obj` as its Gaussian mapped by `matrix` (4x4, any affine map: centre,
-    covariance A Σ Aᵀ as rotation and scales, SH turned by the rotation; transformed_cloud), the points out in a region
-    too, so that Merge Back (which maps a region by the objects' matrices) still lands them where they are seen. The
-    object's transform is left as it is. Returns the number of Gaussians it shows."""
-    if obj.mode == "EDIT":
-        raise ValueError(f"'{obj.name}' is in Edit Mode; apply transforms in Object Mode")
-    data = obj.data
-    if data.users > 1:
-        raise ValueError(f"'{obj.name}': its data '{data.name}' is shared by {data.users} objects; make it single user "
-                         "first (Object > Relations > Make Single User)")
-    # Blender's importers also read SH degree 4 (radiance:sh_15 on), which the core does not turn: left as they are,
-    # those bands would no longer fit the Gaussians.
-    first_unsupported = native_splats._sh_rest_name((native_splats.MAX_SH_DEGREE + 1) ** 2 - 1)
-    if data.attributes.get(first_unsupported) is not None:
-        raise ValueError(f"'{obj.name}' has SH of degree 4 ({first_unsupported}, ...), which RaySplats cannot turn; "
-                         "its transform is not applied")
-    if point_count(data):
-        cloud = native_splats.read_native_splats(data)
-        native_splats.write_native_splats(data, transformed_cloud(cloud, matrix))
-    return gaussian_count(data)
-
-
-def _take(cloud, rows):
-    part = {key: np.ascontiguousarray(cloud[key][rows]) for key in CLOUD_KEYS}
-    part["sh_degree"] = cloud["sh_degree"]
-    return part
-
-
-def empty_cloud(sh_degree):
-    coeffs = (sh_degree + 1) ** 2
-    return {"positions": np.zeros((0, 3), np.float32), "rotations": np.zeros((0, 4), np.float32),
-            "scales": np.zeros((0, 3), np.float32), "opacities": np.zeros(0, np.float32),
-            "sh": np.zeros((0, coeffs, 3), np.float32), "sh_degree": sh_degree}
-
-
-def selected_points(data):
-    """Boolean mask of the selected points (Edit Mode's vertex selection, or a point cloud's selection)."""
-    count = point_count(data)
-    mask = np.zeros(count, dtype=bool)
-    if hasattr(data, "vertices"):
-        # The vertex selection is the boolean attribute ".select_vert" (3.4 on), read in bulk; through the vertices'
-        # "select" it goes one vertex at a time.
-        attribute = data.attributes.get(".select_vert")
-        if attribute is not None and attribute.data_type == "BOOLEAN" and attribute.domain == "POINT":
-            attribute.data.foreach_get("value", mask)
-        else:
-            data.vertices.foreach_get("select", mask)
-    else:
-        # A point cloud keeps its Edit Mode selection in ".selection"; without it every point is selected (Blender's
-        # convention for point clouds and curves: the attribute's default is True).
-        # (Blender may also store it as a float, 0 to 1, as for curves' soft selection.)
-        attribute = data.attributes.get(".selection")
-        if attribute is not None and attribute.data_type == "BOOLEAN" and attribute.domain == "POINT":
-            attribute.data.foreach_get("value", mask)
-        elif attribute is not None and attribute.data_type == "FLOAT" and attribute.domain == "POINT":
-            weights = np.empty(count, dtype=np.float32)
-            attribute.data.foreach_get("value", weights)
-            mask = weights > 0.0
-        else:
-            mask[:] = True
-    return mask
 
 
 def visible_gaussians(opacities):
@@ -218,34 +53,34 @@ class _PointViews:
 
     def __init__(self, data):
         self.data = data
-        self.count = point_count(data)
+        self.count = compat.point_count(data)
         self.copies = []  # (attribute or collection, key, array) read through foreach_get: commit() writes them
         if data.attributes.get(REGION_MARK) is None:
             data.attributes.new(REGION_MARK, "INT", "POINT")
-        mesh_positions = hasattr(data, "vertices") and data.attributes.get("position") is None
+        mesh_positions = compat.points_are_vertices(data) and data.attributes.get("position") is None
         if mesh_positions:  # a mesh before 3.5: the positions are the vertices' "co"
             self.positions = self._view(data.vertices, "co", 3, np.float32)
         else:
             self.positions = self._attribute_view(data.attributes["position"])
-        self.scales = self._attribute_view(native_splats._point_attribute(data, (native_splats.ATTR_SCALE,), (3,)))
-        self.rotations = self._attribute_view(native_splats._point_attribute(data, native_splats.ROTATION_NAMES,
+        self.scales = self._attribute_view(blender_splats.point_attribute(data, (blender_splats.ATTR_SCALE,), (3,)))
+        self.rotations = self._attribute_view(blender_splats.point_attribute(data, blender_splats.ROTATION_NAMES,
                                                                              (4,)))
-        self.base = self._attribute_view(native_splats._point_attribute(data, (native_splats.ATTR_RADIANCE_BASE,),
+        self.base = self._attribute_view(blender_splats.point_attribute(data, (blender_splats.ATTR_RADIANCE_BASE,),
                                                                          (4,)))
         self.sh_rest = []
-        while len(self.sh_rest) < (native_splats.MAX_SH_DEGREE + 1) ** 2 - 1:
-            attribute = native_splats._point_attribute(data, (native_splats._sh_rest_name(len(self.sh_rest)),), (3,))
+        while len(self.sh_rest) < (blender_splats.MAX_SH_DEGREE + 1) ** 2 - 1:
+            attribute = blender_splats.point_attribute(data, (blender_splats.sh_rest_name(len(self.sh_rest)),), (3,))
             if attribute is None:
                 break
             self.sh_rest.append(self._attribute_view(attribute))
-        self.sh_degree = max(d for d in range(native_splats.MAX_SH_DEGREE + 1) if (d + 1) ** 2 - 1 <= len(self.sh_rest))
+        self.sh_degree = max(d for d in range(blender_splats.MAX_SH_DEGREE + 1) if (d + 1) ** 2 - 1 <= len(self.sh_rest))
         del self.sh_rest[(self.sh_degree + 1) ** 2 - 1:]
         self.marks = self._attribute_view(data.attributes[REGION_MARK])
 
     def hide(self, rows, hidden):
         """Hides (or reveals) points `rows` in Edit Mode (a mesh's ".hide_vert"; point clouds have no hiding): the
         points out in a region or removed are not shown there."""
-        if not hasattr(self.data, "vertices") or not len(rows):
+        if not compat.points_are_vertices(self.data) or not len(rows):
             return
         attribute = self.data.attributes.get(".hide_vert")
         if attribute is None:
@@ -260,9 +95,9 @@ class _PointViews:
         self._attribute_view(attribute)[rows] = hidden
 
     def _attribute_view(self, attribute):
-        width = native_splats._width(attribute.data_type) or 1
+        width = blender_splats.attribute_width(attribute.data_type) or 1
         dtype = {"INT": np.int32, "BOOLEAN": np.bool_}.get(attribute.data_type, np.float32)
-        return self._view(attribute.data, blender_compat.ATTRIBUTE_VALUE_KEY.get(attribute.data_type, "value"),
+        return self._view(attribute.data, compat.ATTRIBUTE_VALUE_KEY.get(attribute.data_type, "value"),
                           width, dtype)
 
     def _view(self, elements, key, width, dtype):
@@ -327,15 +162,7 @@ class _PointViews:
         """Writes back what was read as copies, and tells Blender the points changed."""
         for elements, key, values in self.copies:
             elements.foreach_set(key, values)
-        native_splats.tag_changed(self.data)
-
-
-def _grow(data, count):
-    """Adds `count` points (zero) to a compact datablock."""
-    if hasattr(data, "vertices"):
-        data.vertices.add(count)
-    else:
-        data.resize(point_count(data) + count)
+        compat.tag_points_changed(self.data)
 
 
 def open_regions(obj):
@@ -414,7 +241,7 @@ def edit_region_as_polygons(context, obj, mask=None, vertices_per_polygon=REGION
     region_id = random.randrange(1, 2 ** 31 - 1)  # unique across compact objects, so that no merge mistakes one
     while region_id in regions:
         region_id = random.randrange(1, 2 ** 31 - 1)
-    up_axis = native_splats.object_up_axis(obj)
+    up_axis = splat_object.up_axis_of(obj)
     region, warnings = add_gaussian_object(context, f"{obj.name} region", region_cloud, vertices_per_polygon, radius,
                                            up_axis, obj.raysplats.source_file)
     del region_cloud
@@ -492,7 +319,7 @@ def merge_region_back(context, region, target=None):
     same_place = np.allclose(region_matrix, target_matrix, rtol=0.0,
                              atol=4 * np.finfo(np.float32).eps * max(1.0, float(np.abs(target_matrix).max())))
     region_to_target = np.eye(4) if same_place else np.linalg.inv(target_matrix) @ region_matrix
-    part = gaussian_mesh.recover_object_gaussians(native.core(), region, depsgraph, region_to_target)
+    part = polygon_mesh.recover_object_gaussians(native.core(), region, depsgraph, region_to_target)
     slots = _region_slots(region, depsgraph)
     if len(slots) != len(part["opacities"]):
         raise errors.InternalError(f"'{region.name}': {len(part['opacities'])} Gaussians from {len(slots)} faces")
@@ -521,7 +348,7 @@ def merge_region_back(context, region, target=None):
     if appended > 0:
         old_count = views.count
         views.commit()
-        _grow(data, appended)
+        compat.add_points(data, appended)
         views = _PointViews(data)
         fill = np.concatenate([fill, np.arange(old_count, old_count + appended)])
     destination = np.concatenate([rows[slot[in_place]], fill]).astype(np.int64)
@@ -588,7 +415,7 @@ def _forget_region(obj, region_id):
 def _raise_sh_degree(data, degree):
     """Adds the SH coefficient attributes (zero) a compact datablock lacks up to `degree`."""
     for k in range((degree + 1) ** 2 - 1):
-        name = native_splats._sh_rest_name(k)
+        name = blender_splats.sh_rest_name(k)
         if data.attributes.get(name) is None:
             data.attributes.new(name, "FLOAT_VECTOR", "POINT")
 
@@ -640,7 +467,7 @@ class OBJECT_OT_raysplats_merge_region(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return gaussian_mesh.is_gaussian_object(context.active_object) and cls._target(context) is not None
+        return polygon_mesh.is_gaussian_object(context.active_object) and cls._target(context) is not None
 
     @errors.reports_failures("Merge failed: ")
     def execute(self, context):

@@ -5,9 +5,10 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
 
-from . import axes, errors, gaussian_mesh, native
-from .blender_compat import MESH_INDEX_DTYPE
-from .mesh_fast_read import read_face_corners
+from .. import errors, native
+from ..objects import axes, polygon_mesh
+from ..blender.compat import MESH_INDEX_DTYPE
+from ..blender.mesh_read import read_face_corners
 
 SELECTION_ACTIONS = (
     ("SET", "Set", "Select only these Gaussians"),
@@ -25,7 +26,7 @@ def target_objects(context):
         objects = list(getattr(context, "objects_in_mode", None) or [context.edit_object])
     else:
         objects = list(context.selected_objects) or [context.active_object]
-    objects = [obj for obj in objects if gaussian_mesh.is_gaussian_object(obj)]
+    objects = [obj for obj in objects if polygon_mesh.is_gaussian_object(obj)]
     if not objects:
         raise NoSplatObject("No Gaussian splat object is selected (Object Properties > Gaussian Splats marks one)")
     return objects
@@ -62,7 +63,7 @@ def world_gaussians(obj):
     what the user sees of the faces a selection is made of."""
     core = native.core()
     mesh = obj.data
-    cloud = gaussian_mesh.recover_mesh_gaussians(core, mesh, obj.raysplats, axes.world_matrix(obj))
+    cloud = polygon_mesh.recover_mesh_gaussians(core, mesh, obj.raysplats, axes.world_matrix(obj))
     return _face_rows(cloud, mesh)
 
 
@@ -111,7 +112,7 @@ class _SelectGaussians:
 
     @classmethod
     def poll(cls, context):
-        return gaussian_mesh.is_gaussian_object(context.active_object)
+        return polygon_mesh.is_gaussian_object(context.active_object)
 
     def face_mask(self, context, obj):
         raise NotImplementedError  # each selection operator defines its criterion
@@ -225,7 +226,7 @@ class MESH_OT_raysplats_delete_selected(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.mode == "EDIT_MESH" and gaussian_mesh.is_gaussian_object(context.edit_object)
+        return context.mode == "EDIT_MESH" and polygon_mesh.is_gaussian_object(context.edit_object)
 
     @errors.reports_failures("Delete failed: ")
     def execute(self, context):
