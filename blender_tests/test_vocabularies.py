@@ -1,13 +1,28 @@
 # The add-on reads the core's vocabularies rather than restating them: splat formats (file browser filter,
-# menu text, import up axis) and camera models (panoramic cameras of both Blender versions).
+# menu text, import up axis), camera models (panoramic cameras of both Blender versions) and render settings (the
+# scene's properties named as the core's settings table, copied by sync.render_settings).
 import unittest
+from unittest import mock
 
 import bpy
 
 from raysplats.io import format_table
 from raysplats.objects import axes
-from raysplats import native
+from raysplats import errors, native
 from raysplats.engine import sync
+
+
+class _CoreWithSettings:
+    """The core with another settings table."""
+
+    def __init__(self, core, rows):
+        self._core, self._rows = core, rows
+
+    def render_settings(self):
+        return self._rows
+
+    def __getattr__(self, name):
+        return getattr(self._core, name)
 
 
 class Vocabularies(unittest.TestCase):
@@ -60,6 +75,51 @@ class Vocabularies(unittest.TestCase):
             self.assertEqual(description["type"], panorama or camera_type)
             film = core.RenderJob(scene, description, settings).result()
             self.assertEqual(film["rgba"].shape, (12, 16, 4))
+
+    def test_every_render_setting_of_the_core_comes_from_the_scene(self):
+        settings = bpy.context.scene.raysplats
+        properties = settings.bl_rna.properties
+        core_settings = native.core().render_settings()
+        names = {s["name"] for s in core_settings}
+        # The settings sync makes itself or leaves to the core are settings of the core (no stale names).
+        self.assertLessEqual(sync.DERIVED_SETTINGS | sync.CORE_ONLY_SETTINGS, names)
+        blender_type = {"int": "INT", "float": "FLOAT", "bool": "BOOLEAN", "str": "ENUM"}
+        copied = sync.copied_settings(native.core())
+        # Every scene property named as a core setting is copied, unless sync makes that setting itself.
+        self.assertEqual({name for name in properties.keys() if name in names} - sync.DERIVED_SETTINGS, set(copied))
+        for setting in core_settings:
+            name = setting["name"]
+            if name not in copied:
+                continue
+            with self.subTest(setting=name):
+                self.assertIn(name, properties)
+                self.assertEqual(properties[name].type, blender_type[setting["type"]])
+                if setting["choices"]:
+                    self.assertEqual(sorted(item.identifier for item in properties[name].enum_items),
+                                     sorted(setting["choices"]))
+                # A value other than the default reaches the core's settings.
+                default = getattr(settings, name)
+                if setting["type"] == "bool":
+                    value = not default
+                elif setting["type"] == "str":
+                    value = next(choice for choice in setting["choices"] if choice != default)
+                elif setting["type"] == "int":
+                    value = default + 1
+                else:
+                    value = (default + properties[name].hard_max) / 2 if default < properties[name].hard_max else 0.0
+                setattr(settings, name, value)
+                try:
+                    self.assertEqual(sync.render_settings(bpy.context.scene, 16, 12, 1)[name], getattr(settings, name))
+                    self.assertNotEqual(getattr(settings, name), default)
+                finally:
+                    setattr(settings, name, default)
+
+    def test_a_core_setting_without_a_scene_property_is_named(self):
+        core = native.core()
+        rows = core.render_settings() + [{"name": "new_setting", "type": "bool", "description": "", "choices": []}]
+        with mock.patch.object(native, "core", return_value=_CoreWithSettings(core, rows)):
+            with self.assertRaisesRegex(errors.InternalError, "new_setting"):
+                sync.render_settings(bpy.context.scene, 16, 12, 1)
 
     def test_misspelt_render_setting_is_reported(self):
         scene = native.core().RenderScene()

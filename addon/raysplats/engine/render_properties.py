@@ -1,4 +1,5 @@
-# Render settings of the RaySplats engine: scene.raysplats (stable names, scripts rely on them) and the
+# Render settings of the RaySplats engine: scene.raysplats (stable names, scripts rely on them; a property named as
+# one of the core's render settings is copied into it by sync.render_settings) and the
 # panoramic camera settings Blender 3.x keeps in Cycles' properties (camera.data.raysplats).
 import math
 

@@ -4,11 +4,12 @@
 import bpy
 import numpy as np
 
-from .. import native
+from .. import errors, native
 from ..blender import compat, mesh_read
 from ..objects import color_adjustment, compact_points, polygon_mesh, splat_object
 from ..blender.material_reader import input_value
 from .material_table import MaterialTable
+from .render_properties import RaySplatsRenderSettings
 
 
 def _light_kwargs(light, matrix):
@@ -500,20 +501,37 @@ def frame_seed(scene):
     return seed & 0xFFFFFFFF
 
 
+# The core's render settings (its table, core.render_settings()) reach it from Scene.raysplats by name: each is the
+# property of the same name, except those below. So a new core setting is its property in render_properties.py, and
+# this sync copies it; a core setting with neither a property nor a place below is an error here and in the tests.
+# Settings made from Blender's own scene data (image size, samples per render kind, the frame's seed, Film >
+# Transparent) or that apply only to the final render (adaptive sampling).
+DERIVED_SETTINGS = frozenset({"width", "height", "samples", "seed", "transparent_background", "adaptive_sampling",
+                              "adaptive_threshold", "adaptive_min_samples"})
+# Settings the add-on leaves at the core's defaults: tuning and test switches that do not change the image, and the
+# render region, which final.py sets from the render border.
+CORE_ONLY_SETTINGS = frozenset({"tile_size", "gather_buffer_size", "jitter", "speculative_ends", "region_x",
+                                "region_y", "region_width", "region_height"})
+
+
+def copied_settings(core):
+    """The names of the core's render settings copied from Scene.raysplats properties of the same name."""
+    names = [s["name"] for s in core.render_settings()
+             if s["name"] not in DERIVED_SETTINGS and s["name"] not in CORE_ONLY_SETTINGS]
+    missing = [name for name in names if name not in RaySplatsRenderSettings.bl_rna.properties]
+    if missing:
+        raise errors.InternalError(f"render settings of the core without a Scene.raysplats property: "
+                                   f"{', '.join(missing)} (add one in engine/render_properties.py)")
+    return names
+
+
 def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False):
     """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
     viewport refines in passes of its own and leaves it off)."""
     settings = scene.raysplats
-    values = {
-        "width": width, "height": height, "samples": samples, "max_bounces": settings.max_bounces,
-        "seed": (frame_seed(scene) + seed_offset) & 0xFFFFFFFF, "compositing": settings.compositing,
-        "blend_space": settings.blend_space, "camera_ray_splatting": settings.camera_ray_splatting,
-        "transmittance_threshold": settings.transmittance_threshold, "gaussian_mode": settings.gaussian_mode,
-        "meshes_shadow_gaussians": settings.meshes_shadow_gaussians, "gaussian_shading": settings.gaussian_shading,
-        "caustics_reflective": settings.caustics_reflective, "caustics_refractive": settings.caustics_refractive,
-        "transparent_background": bool(scene.render.film_transparent),
-        "pixel_filter": settings.pixel_filter, "filter_width": settings.filter_width,
-    }
+    values = {name: getattr(settings, name) for name in copied_settings(native.core())}
+    values.update(width=width, height=height, samples=samples, seed=(frame_seed(scene) + seed_offset) & 0xFFFFFFFF,
+                  transparent_background=bool(scene.render.film_transparent))
     if adaptive and settings.use_adaptive_sampling:
         values.update(adaptive_sampling=True, adaptive_threshold=settings.adaptive_threshold,
                       adaptive_min_samples=settings.adaptive_min_samples)
