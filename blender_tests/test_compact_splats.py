@@ -1,4 +1,4 @@
-# Compact splat objects (compact_splats.py): one point per Gaussian that keeps the file's values, renders
+# Compact splat objects (objects/compact_points.py): one point per Gaussian that keeps the file's values, renders
 # like the polygon import of the same file, exports exactly under any object transform (covariances checked here
 # with numpy, independently of the core), and hands a selected region to a polygon object and takes it back.
 import unittest

@@ -1,4 +1,4 @@
-# Object > Convert between our Gaussian objects and Blender 5.3's own Gaussian splat point clouds (native_splats.py).
+# Object > Convert between our Gaussian objects and Blender 5.3's own Gaussian splat point clouds (objects/blender_splats.py).
 # These tests check the attribute layout 5.3's importers write (scale linear, rotation w x y z, radiance:base = SH DC
 # + opacity, radiance:sh_k = coefficient k + 1) on what each Blender holds: a mesh whose points carry those attributes
 # below 5.3, a Gaussian-splat point cloud on 5.3 (test_blender_splats.py compares with 5.3's own importer).

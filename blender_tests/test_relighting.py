@@ -130,7 +130,7 @@ class Relighting(unittest.TestCase):
         bpy.app.handlers.depsgraph_update_post.append(handler)
         try:
             donut.raysplats.gaussian_shading = "LIT"
-            # In the UI the message bus reports the edit and tags the object (splat_tools._shading_edited); headless
+            # In the UI the message bus reports the edit and tags the object (upkeep._shading_edited); headless
             # it is never delivered.
             donut.update_tag()
             bpy.context.view_layer.update()

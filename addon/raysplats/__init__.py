@@ -36,8 +36,6 @@ _REGISTERED_NAMES = ("objects.object_settings", "io.import_splats", "io.export_s
 import importlib  # noqa: E402
 import sys  # noqa: E402
 
-import bpy  # noqa: E402
-
 _reloading = f"{__name__}.engine" in sys.modules
 _modules = {}
 for _name in _MODULE_NAMES:

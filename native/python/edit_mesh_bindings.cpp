@@ -3,9 +3,9 @@
 // Why: in Edit Mode the evaluated mesh only wraps the edit BMesh; reading it through bpy (obj.to_mesh(), or touching
 // the evaluated mesh's arrays) makes Blender convert the whole BMesh into a Mesh after every move of a few splats, in
 // time proportional to the whole mesh. Walking the BMesh's vertex table here costs a small fraction of that per
-// vertex (docs/benchmarks.md). The add-on (addon/raysplats/mesh_fast_read.py) finds the BMesh through the bmesh module,
+// vertex (docs/benchmarks.md). The add-on (addon/raysplats/blender/mesh_read.py) finds the BMesh through the bmesh module,
 // checks the struct layout below on the mesh at hand against bmesh's own Python API before the first read
-// (blender_compat holds the offsets), and falls back to to_mesh() whenever a check fails.
+// (compat holds the offsets), and falls back to to_mesh() whenever a check fails.
 //
 // The struct fields read (Blender's source/blender/bmesh/bmesh_class.h(h), unchanged from 2.8 to 5.x):
 //   BMesh  { int totvert, totedge, totloop, totface; ...; char elem_index_dirty, elem_table_dirty; ...;
@@ -35,7 +35,7 @@ using namespace raysplats::python;
 
 namespace {
 
-// Offsets (bytes) of the fields read, from the add-on (blender_compat.BMESH_LAYOUT); checked there.
+// Offsets (bytes) of the fields read, from the add-on (compat.BMESH_LAYOUT); checked there.
 struct BMeshLayout {
     std::size_t totvert, totloop, totface, table_dirty, vtable, ftable, vtable_tot, ftable_tot;
     std::size_t vert_co, face_first_loop, face_len, loop_vert, loop_next;
@@ -128,5 +128,5 @@ void register_edit_mesh(py::module_& m) {
           "Fills `positions` (float32, one row per vertex) from the BMesh of a mesh in Edit Mode at `bmesh_address`, "
           "whose struct offsets `layout` gives, when its faces are exactly the corner arrays given: returns 'read'; "
           "'topology' when they differ (read the mesh in full), 'stale' when its element tables need refreshing "
-          "first. The caller must have checked the layout on this BMesh (mesh_fast_read.py).");
+          "first. The caller must have checked the layout on this BMesh (blender/mesh_read.py).");
 }

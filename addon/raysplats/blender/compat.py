@@ -27,7 +27,7 @@ PRINCIPLED_VERSION = "V2" if _since(4, 0) else "V1"
 AREA_LIGHT_POWER_SCALE = 4.0 / np.pi if _since(4, 0) else 1.0
 
 # Blender 4.0 moved the panoramic camera settings (panorama_type, fisheye_fov, latitude_min, ...) from Cycles' camera
-# properties onto the Camera itself; before, RaySplats keeps its own copy of them (engine/properties.py).
+# properties onto the Camera itself; before, RaySplats keeps its own copy of them (engine/render_properties.py).
 CAMERA_HAS_PANORAMA_SETTINGS = _has_property(bpy.types.Camera, "panorama_type")
 
 # How EEVEE draws a transparent material. Blender 4.2's EEVEE Next replaced Material.blend_method (OPAQUE / CLIP /
@@ -47,14 +47,14 @@ SOLID_COLOR_TYPE_ATTRIBUTE = "VERTEX"
 # --- Mesh storage ---------------------------------------------------------------------------------------------------
 
 # Blender 3.5 stores vertex positions as the generic float3 attribute "position" (before: MVert structs, read
-# through vertices.foreach_get("co"), 20x slower on 4.x; see mesh_fast_read.py).
+# through vertices.foreach_get("co"), 20x slower on 4.x; see blender/mesh_read.py).
 MESH_POSITIONS_ARE_AN_ATTRIBUTE = _since(3, 5)
 
 # Blender 3.6 split a mesh's corner and face structs into int32 arrays of their own: corners were DNA MLoop
 # {unsigned int v, e;} (8 bytes, DNA_meshdata_types.h of 3.4), now the ".corner_vert" and ".corner_edge" attributes;
 # faces were DNA MPoly {int loopstart, totloop; ...} (12 bytes), now one array of corner offsets (face f's corners are
 # offsets[f] up to offsets[f + 1]). MeshLoop.as_pointer() and MeshPolygon.as_pointer() point into these arrays (checked
-# on 3.4 and 4.2); mesh_fast_read.py reads them in place and checks the layout on every mesh.
+# on 3.4 and 4.2); blender/mesh_read.py reads them in place and checks the layout on every mesh.
 MESH_TOPOLOGY_IN_INT32_ARRAYS = _since(3, 6)
 MESH_CORNER_VERTEX_ATTRIBUTE = ".corner_vert"  # from 3.6 on
 LOOP_STRIDE = 4 if MESH_TOPOLOGY_IN_INT32_ARRAYS else 8  # bytes per corner element
@@ -71,7 +71,7 @@ MESH_INDEX_DTYPE = np.int32 if MESH_TOPOLOGY_IN_INT32_ARRAYS else np.uint32
 # Writing those arrays: from 3.5 (positions) and 3.6 (edge and corner indices) Mesh.vertices/edges/loops.foreach_set
 # sets them element by element through RNA on 4.x and 5.x (most of an import's time), and the attribute holding the
 # array takes the same values in bulk, about a hundred times faster (docs/benchmarks.md, Import). Where the attribute
-# exists, gaussian_mesh.fill_mesh writes it: (collection, property) -> (attribute name, its value key).
+# exists, polygon_mesh.fill_mesh writes it: (collection, property) -> (attribute name, its value key).
 MESH_ARRAY_ATTRIBUTES = {("vertices", "co"): ("position", "vector"),
                          ("edges", "vertices"): (".edge_verts", "value"),
                          ("loops", "vertex_index"): (".corner_vert", "value"),
@@ -88,7 +88,7 @@ FACE_CORNER_COUNT_IS_WRITABLE = not bpy.types.MeshPolygon.bl_rna.properties["loo
 EVALUATED_MESH_COPIES_ON_READ = not _since(3, 6)
 
 # Blender 3.5 stores UV maps as generic 2D float attributes of the corner domain (before: MLoopUV layers only reachable
-# through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_fast_read.read_uv_map).
+# through Mesh.uv_layers); reading them as attributes is much faster on 4.x (mesh_read.read_uv_map).
 UV_MAPS_ARE_ATTRIBUTES = _since(3, 5)
 
 # Mesh.vertices/edges/polygons.add() select every new element: from 3.4 on in bool attributes of their own (before,
@@ -98,7 +98,7 @@ MESH_SELECTION_ATTRIBUTES = (".select_vert", ".select_edge", ".select_poly")
 # --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
 
 # Blender 5.3 gave PointCloud a type, POINTS ("Points") or GAUSSIAN_SPLAT ("3D Gaussian Splat"), and renders the
-# latter as splats from the point attributes its PLY/SPZ importers write (native_splats.py has the layout). 5.2 and
+# latter as splats from the point attributes its PLY/SPZ importers write (objects/blender_splats.py has the layout). 5.2 and
 # older have no PointCloud.type. The item is found by its name, so that a renamed identifier is still found: None
 # where the feature is missing.
 def _native_gaussian_splat_type():
@@ -176,7 +176,7 @@ ATTRIBUTE_VALUE_KEY = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR"
 # --- Edit Mode meshes (BMesh) ------------------------------------------------------------------------------------------
 
 # In Edit Mode a mesh lives in a BMesh; reading its positions through bpy makes Blender convert the whole BMesh into a
-# Mesh (in time proportional to the whole mesh). mesh_fast_read.py reads them in place instead, at these byte offsets
+# Mesh (in time proportional to the whole mesh). blender/mesh_read.py reads them in place instead, at these byte offsets
 # (source/blender/bmesh/bmesh_class.h, .hh from 4.0: the same from 2.8 to 5.x), each checked on the BMesh at hand
 # against bmesh's Python API before its first read; any mismatch falls back to the conversion.
 BMESH_LAYOUT = {

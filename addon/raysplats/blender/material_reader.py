@@ -1,5 +1,5 @@
-# The one reader of Blender materials (docs/design.md §6): what the renderer (engine/materials.py) and every exporter
-# (io_mesh_export.py) take a material to be. It follows the active Material Output's Surface link to the shader that
+# The one reader of Blender materials (docs/design.md §6): what the renderer (engine/material_table.py) and every exporter
+# (io/export_mesh.py) take a material to be. It follows the active Material Output's Surface link to the shader that
 # is really connected: the Principled BSDF and the simple BSDF nodes, with a base-colour image texture when Base
 # Color (or a Diffuse BSDF's Color) is linked from an Image Texture node. Nodes not connected to the output do not
 # count, so an Emission-driven material is read as emission whatever other shaders sit in its tree.
@@ -20,7 +20,7 @@ from . import compat
 # the native RenderScene.add_material (native/python/render_bindings.cpp).
 RENDERER_DEFAULTS = {"base_color": (0.8, 0.8, 0.8), "metallic": 0.0, "roughness": 0.5, "alpha": 1.0,
                      "emission_color": (0.0, 0.0, 0.0), "emission_strength": 1.0}
-# Principled v1 (Blender 3.x) has the principled (Disney) diffuse, v2 (4.0) a Lambertian one (see blender_compat).
+# Principled v1 (Blender 3.x) has the principled (Disney) diffuse, v2 (4.0) a Lambertian one (see compat).
 PRINCIPLED_VERSION = compat.PRINCIPLED_VERSION
 PRINCIPLED_DIFFUSE = "PRINCIPLED" if PRINCIPLED_VERSION == "V1" else "LAMBERT"
 # Principled lobes RaySplats leaves out, by the inputs that switch them on (names of Blender 3.x and 4.x).

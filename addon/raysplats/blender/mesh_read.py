@@ -1,7 +1,7 @@
 # Fast reads of a mesh's geometry and attributes into numpy arrays: the generic attributes where Blender has them,
 # else Blender's own vertex, corner and face arrays read in place through as_pointer() (the layout checked on every
-# mesh against blender_compat's facts, with spot checks against RNA), else foreach_get, which always works. Any mesh,
-# not only Gaussian meshes: gaussian_mesh.py builds on these; nothing here knows the Gaussian attribute schema.
+# mesh against compat's facts, with spot checks against RNA), else foreach_get, which always works. Any mesh,
+# not only Gaussian meshes: objects/polygon_mesh.py builds on these; nothing here knows the Gaussian attribute schema.
 import ctypes
 
 import numpy as np

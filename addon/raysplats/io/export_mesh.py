@@ -53,7 +53,7 @@ def mesh_format_of(filepath):
 
 def with_extension(filepath, extension, known_extensions):
     """`filepath` ending in `extension`: its extension replaced when it is one of `known_extensions` (one dot each,
-    as MESH_EXTENSIONS; splat files, whose endings may have two, go through io_import.with_splat_extension), anything
+    as MESH_EXTENSIONS; splat files, whose endings may have two, go through format_table.with_splat_extension), anything
     else kept and the extension added."""
     stem, current = os.path.splitext(filepath)
     return (stem if current.lower() in known_extensions else filepath) + extension

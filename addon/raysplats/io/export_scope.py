@@ -28,7 +28,7 @@ def objects_in_scope(context, limit_to=DEFAULT_LIMIT_TO):
     """The scene objects an export limited to `limit_to` (an identifier of LIMIT_TO_ITEMS) writes, in scene order."""
     view_layer = context.view_layer
     if limit_to == "SELECTED":
-        # A selected empty of a split scene (io_import.add_gaussian_pieces) stands for its pieces.
+        # A selected empty of a split scene (creation.add_gaussian_pieces) stands for its pieces.
         selected = list(context.selected_objects)
         chosen = set(selected)
         for obj in selected:

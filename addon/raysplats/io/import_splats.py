@@ -20,7 +20,7 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0
                            min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS",
                            objects="AUTO", piece_size=0):
     """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
-    (compact_splats.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
+    (objects/compact_points.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
     file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
     format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
     `vertices_per_polygon`: K, or 0 for Auto (auto_vertices_per_polygon). `objects`, `piece_size`: one object or

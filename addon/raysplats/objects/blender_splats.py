@@ -17,7 +17,7 @@
 # the importers' code names it "rotation", which is what is written here and read first ("quaternion" is read too).
 # Where the running Blender has no splat point cloud (5.2 and older: no PointCloud type; before 5.2 no way to add
 # points from Python and no float4 attribute type) the same attributes go on the vertices of a mesh, the four-float
-# ones as FLOAT_COLOR where FLOAT4 is missing (blender_compat has these facts).
+# ones as FLOAT_COLOR where FLOAT4 is missing (compat has these facts).
 import bpy
 import numpy as np
 

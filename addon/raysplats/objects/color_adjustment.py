@@ -1,8 +1,8 @@
 # The colour adjustments stored on a Gaussian object (properties.py: exposure, brightness, saturation, hue,
 # temperature) and where they apply. They are one affine map of the display colour, applied exactly to the SH by the
-# core (native/include/raysplats/color_adjustment.h) wherever Gaussians are recovered (gaussian_mesh.recover_from_arrays:
+# core (native/include/raysplats/color_adjustment.h) wherever Gaussians are recovered (polygon_mesh.recover_from_arrays:
 # the render, the viewport and every export), and to the corner colour attribute that Solid and Material Preview
-# show (splat_tools.refresh_corner_colors). The stored SH stay as imported, so adjusting is never lossy.
+# show (upkeep.refresh_corner_colors). The stored SH stay as imported, so adjusting is never lossy.
 from .. import native
 
 ADJUSTMENT_NAMES = ("exposure", "brightness", "saturation", "hue", "temperature")

@@ -1,6 +1,6 @@
 # The Blender side of the polygon bridge (docs/design.md §5): the attribute schema of a Gaussian mesh; writes the native
 # core's polygon arrays into a Mesh with bulk foreach_set, and reads any (evaluated) mesh back into arrays for recovery
-# (through mesh_fast_read.py, which knows how to read Blender's arrays fast).
+# (through blender/mesh_read.py, which knows how to read Blender's arrays fast).
 import numpy as np
 
 from .. import native
@@ -37,7 +37,7 @@ def _indices_in(values):
 
 def write_mesh_array(mesh, collection, prop, values):
     """mesh.<collection>.foreach_set(prop, values), through the attribute that holds the array where there is one
-    (blender_compat.MESH_ARRAY_ATTRIBUTES: a hundred times faster on 4.x)."""
+    (compat.MESH_ARRAY_ATTRIBUTES: a hundred times faster on 4.x)."""
     name, key = MESH_ARRAY_ATTRIBUTES[(collection, prop)]
     attribute = mesh.attributes.get(name)
     if attribute is not None:
@@ -130,7 +130,7 @@ def fill_mesh(mesh, polygons):
 
 
 def remove_selection_layers(mesh):
-    """Removes the selection layers of vertices, edges and faces (blender_compat.MESH_SELECTION_ATTRIBUTES): nothing
+    """Removes the selection layers of vertices, edges and faces (compat.MESH_SELECTION_ATTRIBUTES): nothing
     selected."""
     for name in MESH_SELECTION_ATTRIBUTES:
         attribute = mesh.attributes.get(name)
@@ -209,7 +209,7 @@ def is_gaussian_object(obj):
 
 def scene_pieces(obj):
     """The Gaussian objects of an imported scene: `obj` itself when it is one, or the pieces of a split scene
-    (io_import.add_gaussian_pieces) when `obj` is their empty, in name order; [] otherwise."""
+    (creation.add_gaussian_pieces) when `obj` is their empty, in name order; [] otherwise."""
     if is_gaussian_object(obj):
         return [obj]
     if obj is None or obj.type != "EMPTY":

@@ -1,7 +1,7 @@
 # Blender's Apply Transform kept exact for splat objects. Applying a non-uniform scale or a shear to the
 # polygon corners alone changes each Gaussian's thickness; the exact Apply here maps the full Gaussians (covariance,
 # thickness, view-dependent colour) and rebuilds their polygons. Blender's own, which scripts can still call, is noticed
-# and reported (notice_corner_only_apply, called by splat_handlers.py). Shown by splat_ui.py (Ctrl+A).
+# and reported (notice_corner_only_apply, called by tools/handlers.py). Shown by ui/panels.py (Ctrl+A).
 import bpy
 import numpy as np
 from bpy.props import BoolProperty

@@ -1,6 +1,6 @@
 # Selecting Gaussians for clean-up: by opacity, size, colour, floaters and a crop box, and deleting the
 # selected ones. The criteria run in the core over whole arrays (native/include/raysplats/splat_selection.h); this
-# module reads the Gaussians and writes Blender's face, edge and vertex selection in bulk. Shown by splat_ui.py.
+# module reads the Gaussians and writes Blender's face, edge and vertex selection in bulk. Shown by ui/panels.py.
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty

@@ -1,8 +1,8 @@
 # Splat-object upkeep: reducing the SH degree, showing the colour adjustments in the viewport's colour
 # attribute, and keeping a joined mesh a splat object (or marking one by hand) with its settings read back from its
-# data. Per-Gaussian work runs in the core (color_adjustment.h). Selection is in splat_selection.py, the exact Apply
-# Transform in splat_transform.py, the handlers that call these on Blender's changes in splat_handlers.py, the panels
-# and menus in splat_ui.py.
+# data. Per-Gaussian work runs in the core (color_adjustment.h). Selection is in tools/select_splats.py, the exact Apply
+# Transform in tools/exact_apply.py, the handlers that call these on Blender's changes in tools/handlers.py, the panels
+# and menus in ui/panels.py.
 import math
 
 import bpy

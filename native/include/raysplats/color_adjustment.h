@@ -41,7 +41,7 @@ AffineColorMap color_adjustment_map(const ColorAdjustment& adjustment);  // thro
 // Multi-threaded.
 void apply_color_adjustment(const ColorAdjustment& adjustment, int sh_degree, float* sh, std::size_t count);
 
-// The colour attribute of a splat mesh (gaussian_mesh.py's "gs_color", a byte colour attribute): per corner the sRGB
+// The colour attribute of a splat mesh (objects/polygon_mesh.py's "gs_color", a byte colour attribute): per corner the sRGB
 // bytes of the adjusted SH DC colour (clamped to [0, 1]; Blender gives them to shaders as linear RGB) and A = the face's
 // opacity x 255, rounded. sh_dc and opacity per face; corners of face f are [face_corner_start[f], +
 // face_corner_count[f]) in out_rgba (4 bytes per corner, corner_count of them; corners of no face are left as they
