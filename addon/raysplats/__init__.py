@@ -22,7 +22,7 @@ _MODULE_NAMES = (
     "objects.falloff_material", "objects.blender_splats", "objects.compact_points", "objects.modifier_checks",
     "objects.splat_object", "objects.creation",
     "io.format_table", "io.import_policy", "io.gltf_mesh_import", "io.export_scope",
-    "ui.solid_view", "io.import_splats", "io.export_splats", "io.export_mesh",
+    "blender.viewport_shading", "io.import_splats", "io.export_splats", "io.export_mesh",
     "tools.select_splats", "tools.upkeep", "tools.exact_apply", "tools.region_editing", "tools.convert_splats",
     "tools.handlers", "ui.panels",
     "engine.render_properties", "engine.color_management", "engine.material_table", "engine.passes", "engine.sync",

@@ -9,7 +9,7 @@ from bpy_extras.io_utils import ImportHelper
 from .. import errors, native
 from ..objects import axes, creation, polygon_mesh, splat_object
 from ..progress import StageProgress
-from ..ui.solid_view import raise_material_preview_samples, show_splat_colors_in_solid_views
+from ..blender.viewport_shading import raise_material_preview_samples, show_splat_colors_in_solid_views
 from . import gltf_mesh_import
 from .format_table import open_splat_file_browser, splat_format_of, splat_menu_text
 from .import_policy import (NotEnoughMemory, OBJECTS_ITEMS, POINTS_NAME, REPRESENTATION_ITEMS, check_import_memory,

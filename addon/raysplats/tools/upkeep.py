@@ -11,6 +11,7 @@ from bpy.props import IntProperty
 
 from .. import errors, native
 from ..objects import color_adjustment, polygon_mesh
+from ..objects.object_settings import RaySplatsObjectSettings
 from ..blender.mesh_read import read_attribute, read_face_corners
 from .select_splats import object_mode_data, target_objects
 
@@ -177,7 +178,6 @@ def subscribe_to_adjustments():
     """Message-bus subscriptions to the colour adjustments of every object's settings. The message bus, not update=
     callbacks: a property with an update callback makes Blender 4.2 as a Python module (the bpy wheel the tests run)
     crash at exit, even once unregistered."""
-    from ..objects.object_settings import RaySplatsObjectSettings
     bpy.msgbus.clear_by_owner(_msgbus_owner)
     for name in color_adjustment.ADJUSTMENT_NAMES:
         bpy.msgbus.subscribe_rna(key=(RaySplatsObjectSettings, name), owner=_msgbus_owner, args=(),

@@ -1,5 +1,6 @@
-# Viewport niceties after an import: Solid view coloured by the splats, and enough Material Preview samples.
-from ..blender import compat
+# How 3D views show a new object: Solid view coloured by its colour attribute, and enough EEVEE samples for
+# Material Preview's stochastic transparency (what the splat import asks for).
+from . import compat
 
 
 
