@@ -12,7 +12,7 @@ import bpy
 import splat_testing as st
 from raysplats.blender import compat
 from raysplats.objects import falloff_material, polygon_mesh
-from raysplats.ui import solid_view
+from raysplats.blender import viewport_shading
 
 SCENE = "small_sh3_inria.ply"
 
@@ -70,10 +70,10 @@ class ImportViewportShading(unittest.TestCase):
         # As if the object had been imported into a scene that no window shows.
         other_scene = types.SimpleNamespace(scene=bpy.data.scenes.new("Other"),
                                             window_manager=bpy.context.window_manager)
-        self.assertEqual(solid_view.show_splat_colors_in_solid_views(other_scene, obj), 0)
+        self.assertEqual(viewport_shading.show_splat_colors_in_solid_views(other_scene, obj), 0)
         for space in view3d_spaces():
             self.assertEqual(space.shading.color_type, "MATERIAL")
-        self.assertEqual(solid_view.show_splat_colors_in_solid_views(bpy.context, obj), len(view3d_spaces()))
+        self.assertEqual(viewport_shading.show_splat_colors_in_solid_views(bpy.context, obj), len(view3d_spaces()))
 
     def test_import_without_a_screen(self):
         # No window, hence no screen (overriding screen=None as well crashes bpy 4.2 itself).
@@ -83,4 +83,4 @@ class ImportViewportShading(unittest.TestCase):
         self.assertEqual(len(obj.data.polygons), 9080)
         # A script's own context may have no window manager at all: nothing to switch, no error.
         headless = types.SimpleNamespace(scene=bpy.context.scene, window_manager=None)
-        self.assertEqual(solid_view.show_splat_colors_in_solid_views(headless, obj), 0)
+        self.assertEqual(viewport_shading.show_splat_colors_in_solid_views(headless, obj), 0)
