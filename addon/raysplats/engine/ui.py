@@ -103,6 +103,36 @@ class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
         column.prop(context.scene.raysplats, "caustics_refractive", text="Refractive")
 
 
+# The Scene.raysplats settings the panels above lay out; any other (a render setting just added to the core and to
+# render_properties.py) is shown by the Other Settings panel until it is given its place.
+LAID_OUT_SETTINGS = frozenset({
+    "use_adaptive_sampling", "adaptive_threshold", "samples", "adaptive_min_samples", "viewport_samples", "seed",
+    "use_animated_seed", "gaussian_mode", "compositing", "blend_space", "camera_ray_splatting",
+    "transmittance_threshold", "gaussian_shading", "meshes_shadow_gaussians", "pixel_filter", "filter_width",
+    "max_bounces", "caustics_reflective", "caustics_refractive"})
+
+
+def other_settings(settings):
+    """The names of the Scene.raysplats properties no panel above lays out, in their declaration order."""
+    return [prop.identifier for prop in settings.bl_rna.properties
+            if prop.identifier not in ("rna_type", "name") and prop.identifier not in LAID_OUT_SETTINGS]
+
+
+class RAYSPLATS_RENDER_PT_other(RaySplatsPanel, bpy.types.Panel):
+    """Render settings no other panel lays out yet, so that every setting can be seen and changed."""
+    bl_label = "Other Settings"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and bool(other_settings(context.scene.raysplats))
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        for name in other_settings(context.scene.raysplats):
+            self.layout.prop(context.scene.raysplats, name)
+
+
 class RAYSPLATS_CAMERA_PT_panorama(RaySplatsPanel, bpy.types.Panel):
     bl_label = "Panorama (RaySplats)"
     bl_context = "data"
@@ -140,7 +170,7 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
 
 
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_film,
-            RAYSPLATS_RENDER_PT_light_paths,
+            RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_other,
             RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)
 
 
