@@ -11,7 +11,7 @@ import splat_testing as st
 from raysplats import native
 from raysplats.blender import compat
 from raysplats.io import import_policy
-from raysplats.objects import axes, blender_splats, compact_points
+from raysplats.objects import axes, blender_splats, compact_points, splat_object
 from raysplats.tools import region_editing
 from raysplats.engine import sync
 
@@ -49,6 +49,21 @@ class CompactImport(unittest.TestCase):
         for key in KEYS:
             np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
         self.assertEqual(tuple(obj.rotation_euler), tuple(np.float32(axes.object_rotation_euler("-Y"))))
+
+    def test_the_up_axis_is_stored_once_for_every_kind(self):
+        obj = import_points()
+        self.assertEqual(splat_object.kind_of(obj), splat_object.POINTS)
+        self.assertEqual(splat_object.up_axis_of(obj), "-Y")  # the file's, as recorded by the import
+        self.assertEqual(obj.raysplats.up_axis, "-Y")
+        self.assertNotIn("raysplats_up_axis", obj.keys())
+        # A point object whose up axis was never recorded has its importer's axes (Blender's own: Z)...
+        obj.raysplats.property_unset("up_axis")
+        self.assertEqual(splat_object.up_axis_of(obj), blender_splats.BLENDER_MADE_UP_AXIS)
+        # ...unless a file saved by an earlier version kept it in a custom property.
+        obj["raysplats_up_axis"] = "X"
+        self.assertEqual(splat_object.up_axis_of(obj), "X")
+        splat_object.set_up_axis(obj, "Y")
+        self.assertEqual(splat_object.up_axis_of(obj), "Y")
 
     def test_untouched_export_is_exact(self):
         import_points()
