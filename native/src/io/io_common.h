@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "raysplats/default_init_allocator.h"
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/splat_io.h"
@@ -23,6 +24,9 @@ namespace io {
 
 // Splats per task for tbb::parallel_for over per-splat work.
 constexpr std::size_t kGrain = 8192;
+
+// Bytes read from a file or an archive: resize() leaves them uninitialised, since they are written right after.
+using Bytes = std::vector<std::uint8_t, DefaultInitAllocator<std::uint8_t>>;
 
 // Read-only view of a whole file: memory mapped where possible. Throws FileFormatError naming the file
 // if it cannot be opened or read. An empty file gives size() == 0 and data() == nullptr.

@@ -106,7 +106,6 @@ GaussianCloud read_sog(const FileBytes& f, const ReadOptions& options, LoadRepor
 SplatFileSummary probe_sog(const FileBytes& f);
 // Whether a file is SOG: zip magic in its first bytes, or a name ending in .sog or meta.json.
 bool is_sog_file(const std::string& path, const std::uint8_t* head, std::size_t head_size);
-bool is_zip(const std::uint8_t* data, std::size_t size);
 
 }  // namespace io
 
