@@ -22,34 +22,92 @@ CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings&
                                  const ShadowVisibility& shadow, const std::atomic<bool>* cancel)
     : s_(scene), st_(settings), shadow_(shadow), prepass_(scene, settings, camera, cancel) {}
 
+namespace {
+
+// The samples of a packet's lanes for the branch-free per-splat test: their positions and mesh depths (lanes not
+// composited far off the image and in front of everything), and the box of their positions.
+struct PacketSamples {
+    float x0, y0, x1, y1;
+    alignas(16) float px[16], py[16], pz[16];
+};
+
+void packet_samples(std::uint32_t lanes, const float* xs, const float* ys, const float* mesh_depth,
+                    PacketSamples& s) {
+    s.x0 = std::numeric_limits<float>::infinity();
+    s.y0 = s.x0;
+    s.x1 = -s.x0;
+    s.y1 = -s.x0;
+    for (int l = 0; l < 16; ++l) {
+        s.px[l] = s.py[l] = -1e15f;
+        s.pz[l] = -kInf;
+    }
+    for (std::uint32_t live = lanes; live; live &= live - 1) {
+        const int l = __builtin_ctz(live);
+        s.x0 = std::min(s.x0, xs[l]);
+        s.x1 = std::max(s.x1, xs[l]);
+        s.y0 = std::min(s.y0, ys[l]);
+        s.y1 = std::max(s.y1, ys[l]);
+        s.px[l] = xs[l];
+        s.py[l] = ys[l];
+        s.pz[l] = mesh_depth[l];
+    }
+}
+
+}  // namespace
+
+inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& ray, Sampler& rng, Segment& seg,
+                                   Counters& c) const {
+    const ProjectedSplat& ps = prepass_.splats()[index];
+    const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power));
+    if (alpha < kMinAlpha) return false;
+    glm::vec3 color = ps.color;
+    if (st_.meshes_shadow_gaussians) {
+        // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear light.
+        const SplatSource& source = prepass_.sources()[index];
+        const float vis =
+            shadow_.gaussian_light_visibility(s_.gaussians[source.set]->world_center(source.prim), rng, c);
+        if (st_.blend_space != BlendSpace::Display) color *= vis;
+        else if (vis < 1.0f)
+            for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));
+    }
+    const float t_before = seg.transmittance;
+    seg.radiance += t_before * alpha * color;
+    seg.transmittance = t_before * (1.0f - alpha);
+    ++seg.gaussians;
+    ++c.gaussian_hits;
+    const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
+    const bool stop = seg.transmittance < st_.transmittance_threshold;
+    if (opaque_here || stop) {
+        // The point of the ray nearest the centre stands for the splat's place along the ray.
+        const SplatSource& source = prepass_.sources()[index];
+        const GaussianSet& set = *s_.gaussians[source.set];
+        const float along = glm::dot(set.world_center(source.prim) - ray.o, ray.d);
+        if (opaque_here) {
+            seg.depth = along;
+            const glm::vec3 n = set.flat ? set.world_normal(source.prim) : -ray.d;
+            seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
+        }
+        if (stop) {
+            seg.terminated = true;
+            seg.end = along;
+        }
+    }
+    return stop;
+}
+
 inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs,
                                        const float* ys, const float* mesh_depth, Sampler* rngs, Segment* segs,
                                        Counters& c) const {
     const std::vector<ProjectedSplat>& splats = prepass_.splats();
-    const std::vector<SplatSource>& sources = prepass_.sources();
     const SplatTileLists &coarse_lists = prepass_.coarse(), &fine_lists = prepass_.fine();
-    const bool display = st_.blend_space == BlendSpace::Display;
     // The box of the packet's sample positions: a splat whose square misses it is skipped with four comparisons
     // instead of one per lane. A 4 x 4 packet covers a sixteenth of a 16 px tile, and a zoomed-out view of a big scene
     // has thousands of small splats per tile list (showroom_1.5M whole at 640 x 360, 128 samples: the F12 took 7.5x
     // the traced render's time before this test).
-    // With it, the lanes' samples and mesh depths, lanes not in `lanes` far off the image and in front of everything.
-    float x0 = std::numeric_limits<float>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
-    alignas(16) float px[16], py[16], pz[16];
-    for (int l = 0; l < 16; ++l) {
-        px[l] = py[l] = -1e15f;
-        pz[l] = -kInf;
-    }
-    for (std::uint32_t live = lanes; live; live &= live - 1) {
-        const int l = __builtin_ctz(live);
-        x0 = std::min(x0, xs[l]);
-        x1 = std::max(x1, xs[l]);
-        y0 = std::min(y0, ys[l]);
-        y1 = std::max(y1, ys[l]);
-        px[l] = xs[l];
-        py[l] = ys[l];
-        pz[l] = mesh_depth[l];
-    }
+    PacketSamples samples;
+    packet_samples(lanes, xs, ys, mesh_depth, samples);
+    const float x0 = samples.x0, y0 = samples.y0, x1 = samples.x1, y1 = samples.y1;
+    const float *px = samples.px, *py = samples.py, *pz = samples.pz;
     // The coarse tile holding the fine one, and the two lists' ranges; a splat is in one level, so merging them by
     // rank (= depth order) visits each splat once, front to back.
     constexpr int kPerCoarse = CameraSplatPrepass::kTileSize / CameraSplatPrepass::kFineTileSize;
@@ -99,44 +157,7 @@ inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lane
         lanes &= ~behind;  // the lists are front to back: these lanes are done
         for (std::uint32_t live = covered & lanes; live; live &= live - 1) {
             const int l = __builtin_ctz(live);
-            const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power[l]));
-            if (alpha < kMinAlpha) continue;
-            glm::vec3 color = ps.color;
-            if (st_.meshes_shadow_gaussians) {
-                // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear
-                // light.
-                const SplatSource& source = sources[index];
-                const float vis = shadow_.gaussian_light_visibility(
-                    s_.gaussians[source.set]->world_center(source.prim), rngs[l], c);
-                if (!display) color *= vis;
-                else if (vis < 1.0f)
-                    for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));
-            }
-            Segment& seg = segs[l];
-            const float t_before = seg.transmittance;
-            seg.radiance += t_before * alpha * color;
-            seg.transmittance = t_before * (1.0f - alpha);
-            ++seg.gaussians;
-            ++c.gaussian_hits;
-            const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
-            const bool stop = seg.transmittance < st_.transmittance_threshold;
-            if (opaque_here || stop) {
-                // The point of the ray nearest the centre stands for the splat's place along the ray.
-                const SplatSource& source = sources[index];
-                const GaussianSet& set = *s_.gaussians[source.set];
-                const Ray& ray = rays[l];
-                const float along = glm::dot(set.world_center(source.prim) - ray.o, ray.d);
-                if (opaque_here) {
-                    seg.depth = along;
-                    const glm::vec3 n = set.flat ? set.world_normal(source.prim) : -ray.d;
-                    seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
-                }
-                if (stop) {
-                    seg.terminated = true;
-                    seg.end = along;
-                    lanes &= ~(1u << l);
-                }
-            }
+            if (blend(index, power[l], rays[l], rngs[l], segs[l], c)) lanes &= ~(1u << l);
         }
     }
 }

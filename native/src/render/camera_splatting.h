@@ -79,6 +79,11 @@ private:
     void composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs, const float* ys,
                    const float* mesh_depth, Sampler* rngs, Segment* segs, Counters& c) const;
 
+    // Composites splat `index` onto a lane's segment, at `power` (its exponent at the lane's sample): C += T alpha c,
+    // T *= 1 - alpha; the splat that makes the segment opaque gives its depth and normal. Returns whether the segment
+    // stopped (T below the transmittance threshold).
+    bool blend(std::uint32_t index, float power, const Ray& ray, Sampler& rng, Segment& seg, Counters& c) const;
+
     const Scene::Impl& s_;
     const RenderSettings& st_;
     const ShadowVisibility& shadow_;
