@@ -20,16 +20,8 @@
 // does: its first mesh hit (found with a meshes-only traversal) bounds the list by view depth, is shaded by the path
 // integrator and weighted by the transmittance left (the world without a mesh hit), exactly as a traced segment's.
 //
-// The pre-pass, as the 3DGS tile rasterizer: every Gaussian projected in parallel, the visible ones sorted by depth,
-// binned into screen tiles (a tile's list is the ranks, in that sort, of the Gaussians that can reach alpha 1/255 in
-// it: the square, intersected with the ellipse where a exp(-q / 2) >= 1/255; 4 bytes an entry), each list in depth
-// order. Unlike the rasterizer's one level of 16 x 16 px tiles, there are two: splats whose square's half side is at
-// most 4 px go into 4 x 4 px tiles, the bigger ones into 16 x 16 px tiles (the reason and figures at
-// CameraSplatting::bin's call). Memory: 56 bytes a Gaussian in view and 4 a tile entry, for the render's duration. A
-// tile's lists hold every splat that a sample of its pixels can see wherever the pixel filter's jitter puts it (the
-// tile widened by the filter's reach), so a 4 x 4 packet of camera rays (the grids are aligned to the packets) reads
-// the lists of its own fine tile and of the coarse tile holding it once, for all 16 samples, merged by rank. The grids
-// cover the render region widened by the filter's reach.
+// The pre-pass (camera_splat_prepass.h) projects, sorts and bins the splats once per frame; a 4 x 4 packet of camera
+// rays then reads the lists of its own fine tile and of the coarse tile holding it once, for all 16 samples.
 //
 // Applies when the camera is perspective and every Gaussian cloud is BAKED (effective shading): LIT and
 // BAKED_SHADOWED Gaussians are shaded per hit point along the ray and cannot join a screen-space list, so a scene
@@ -45,6 +37,7 @@
 
 #include <glm/glm.hpp>
 
+#include "camera_splat_prepass.h"
 #include "gaussian_segment_tracer.h"
 #include "ray.h"
 #include "raysplats/render/camera.h"
@@ -55,24 +48,6 @@
 
 namespace raysplats {
 
-// One Gaussian as the camera sees it, in depth order: what every camera sample reads (48 bytes; the colour is here,
-// not with the rest of what only the samples it covers read, because a second array meant a second cache miss)...
-struct alignas(16) ProjectedSplat {
-    float u, v;            // image position of the centre, pixels (x right, y down from the top-left corner)
-    float conic[3];        // Sigma'^-1 = [[conic0, conic1], [conic1, conic2]], 1 / px^2
-    float opacity;
-    float depth;           // view depth of the centre (along the camera's -Z axis, camera-space units)
-    float half_extent;     // half side of its square, pixels: 3 sqrt(lambda_max(Sigma'))
-    glm::vec3 color;       // in the render's blend space
-    // Below this exponent alpha is under 1/255: ln(1/255 / opacity), less a margin, so that the test skips the exp of
-    // most samples it misses and never one whose alpha reaches 1/255 (which is then tested exactly).
-    float least_power;
-};
-// ... and what only a sample it stops or makes opaque, or meshes_shadow_gaussians, reads.
-struct SplatSource {
-    std::uint32_t set, prim;  // its GaussianSet and primitive (normal, centre)
-};
-
 class CameraSplatting {
 public:
     // Whether camera-ray splatting renders this frame's camera rays (the setting on, a perspective camera, every
@@ -80,7 +55,7 @@ public:
     static bool applies(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                         const GaussianShader& shader);
 
-    // The pre-pass. Returns early, incomplete, once `cancel` is set (the render loop then renders nothing).
+    // Runs the pre-pass. Returns early, incomplete, once `cancel` is set (the render loop then renders nothing).
     CameraSplatting(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                     const ShadowVisibility& shadow, const std::atomic<bool>* cancel);
 
@@ -90,50 +65,29 @@ public:
     void trace_packet(int packet_x, int packet_y, const Ray* rays, const bool* active, const float* xs,
                       const float* ys, Sampler* rngs, Segment* segs, Counters& c) const;
 
-    std::size_t splat_count() const { return splats_.size(); }
-    std::size_t tile_entry_count() const { return coarse_.entries.size() + fine_.entries.size(); }
+    std::size_t splat_count() const { return prepass_.splats().size(); }
+    std::size_t tile_entry_count() const {
+        return prepass_.coarse().entries.size() + prepass_.fine().entries.size();
+    }
     // Bytes held by the splats and tile lists.
-    std::size_t memory_bytes() const;
-
-    static constexpr int kTileSize = 16;      // pixels, as the 3DGS rasterizer's BLOCK_X x BLOCK_Y
-    static constexpr int kFineTileSize = 4;   // pixels: one 4 x 4 packet of camera rays
-    // Splats whose square's half side is at most this (pixels) go into the fine lists, the others into the coarse.
-    // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 is slower.)
-    static constexpr float kFineSplatMaxHalfExtent = 4.0f;
+    std::size_t memory_bytes() const { return prepass_.memory_bytes(); }
 
 private:
-    // One level of tile lists: nx x ny square tiles of `size` pixels from the grid's corner (grid_x0_, grid_y0_);
-    // tile t's splats are entries[offsets[t] .. offsets[t + 1]), indices into splats_, ascending (= front to back).
-    struct TileLists {
-        int size = 0, nx = 0, ny = 0;
-        std::vector<std::uint64_t> offsets;
-        std::vector<std::uint32_t> entries;
-        std::size_t tile_of(float x, float y, int x0, int y0) const;
-    };
-    // Bins the splats of `level` into `lists` (sized already): only tiles the splat can reach alpha 1/255 in.
-    void bin(TileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
-             const std::atomic<bool>* cancel);
     // Composites onto the segments of the lanes in `lanes` (a mask), whose samples all lie in fine tile `fine_tile`,
     // the splats of that fine tile's list and of its coarse tile's list, merged in depth order, in front of each
     // lane's `mesh_depth` (view depth): the lists are read once for all of them.
     void composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs, const float* ys,
                    const float* mesh_depth, Sampler* rngs, Segment* segs, Counters& c) const;
-    float view_depth(const glm::vec3& world_point) const;
+
+    // Composites splat `index` onto a lane's segment, at `power` (its exponent at the lane's sample): C += T alpha c,
+    // T *= 1 - alpha; the splat that makes the segment opaque gives its depth and normal. Returns whether the segment
+    // stopped (T below the transmittance threshold).
+    bool blend(std::uint32_t index, float power, const Ray& ray, Sampler& rng, Segment& seg, Counters& c) const;
 
     const Scene::Impl& s_;
     const RenderSettings& st_;
     const ShadowVisibility& shadow_;
-    // World to camera space (the camera's inverse matrix: camera looks down -Z) and the projection to pixels:
-    // x = cx + fx X / z, y = cy - fy Y / z, z = -Z.
-    glm::mat3 world_to_camera_{1.0f};
-    glm::vec3 camera_origin_{0.0f};
-    float fx_ = 1.0f, fy_ = 1.0f, cx_ = 0.0f, cy_ = 0.0f;
-    int grid_x0_ = 0, grid_y0_ = 0;         // the tile grids' common corner, pixels
-    float sample_pad_ = 0.0f;               // how far outside its pixel's square a sample can fall, pixels
-    std::vector<ProjectedSplat> splats_;    // visible Gaussians in (depth, set, prim) order
-    std::vector<SplatSource> sources_;      // theirs, in the same order
-    TileLists coarse_;                      // kTileSize tiles: splats wider than kFineSplatMaxHalfExtent
-    TileLists fine_;                        // kFineTileSize tiles, the packets' own: the smaller splats
+    const CameraSplatPrepass prepass_;
 };
 
 }  // namespace raysplats

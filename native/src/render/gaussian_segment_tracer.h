@@ -13,7 +13,7 @@
 #include "gaussian_callbacks.h"
 #include "gaussian_shading.h"
 #include "ray.h"
-#include "raysplats/render/renderer.h"
+#include "raysplats/render/render_settings.h"
 #include "render_math.h"
 #include "scene_impl.h"
 #include "shadow_visibility.h"

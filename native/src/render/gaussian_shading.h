@@ -24,7 +24,7 @@
 
 #include "gaussian_primitives.h"
 #include "ray.h"
-#include "raysplats/render/renderer.h"
+#include "raysplats/render/render_settings.h"
 #include "render_math.h"
 #include "scene_impl.h"
 #include "shadow_visibility.h"

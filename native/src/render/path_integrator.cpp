@@ -81,7 +81,6 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     }
     return seg;
 }
-
 // Display blend space (BlendSpace::Display, docs/design.md §4 and §6): a run of Gaussians along a ray (one
 // segment) is composited in display space as trained, D = sum T_i a_i c_i with display colours c_i, and meets what
 // lies behind it, the linear radiance L_behind (the mesh it ends on, shaded with its lights and bounces, or the
@@ -96,241 +95,310 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
 // the film combines the means of D, T and T L_behind over the pixel's samples (SampleRecord), so that stochastic
 // compositing, whose sample is one display colour or what lies behind, converges to the sorted image, and noise in
 // L_behind is averaged in linear light.
-namespace {
-struct DisplayRun {
+struct PathIntegrator::DisplayRun {
     glm::vec3 outer_radiance;  // the path's radiance before the run (at the enclosing run's level)
     glm::vec3 outer_beta;      // the throughput at the run, relative to the enclosing run
     glm::vec3 display;         // D
     float transmittance;       // T
 };
-}  // namespace
 
-// Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
-// last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
-// (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
-SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segment* first) const {
-    glm::vec3 radiance(0.0f), beta(1.0f);
+// One path as path() follows it: the ray it traces next, its radiance and throughput, and what the camera segment
+// gives the film.
+struct PathIntegrator::PathState {
+    PathState(const Ray& r, Sampler& sampler, std::vector<DisplayRun>& display_runs, bool display_blend)
+        : ray(r), rng(sampler), runs(display_runs), display(display_blend) {}
+    Ray ray;
+    Sampler& rng;
+    glm::vec3 radiance{0.0f}, beta{1.0f};
     bool camera_segment = true;
     float alpha = 0.0f;
     float depth = kInf;
-    glm::vec3 normal(0.0f);
+    glm::vec3 normal{0.0f};
     std::uint32_t camera_gaussians = 0;  // composited or accepted along the camera segment
     bool normal_at_mesh = false;  // depth is the camera segment's mesh hit, whose normal the surface gives
     int bounce = 0, passes = 0;
     bool after_diffuse = false;  // Cycles PATH_RAY_DIFFUSE: the last bounce was diffuse
     bool last = false;           // the ray leaving the last vertex: emission only
     float mis_pdf = 0.0f;        // pdf of the BSDF sample that made `ray` (0: camera or delta)
-    const Material default_material;
     // Display blend space: the runs of Gaussians whose composite waits for the radiance behind them, innermost last.
     // While one is open, `radiance` and `beta` are relative to it (beta_outer: the product of the enclosing betas).
-    const bool display = st_.blend_space == BlendSpace::Display;
-    thread_local std::vector<DisplayRun> runs;
-    runs.clear();
+    std::vector<DisplayRun>& runs;
+    const bool display;
     bool first_trace = true, camera_run = false;  // camera_run: runs[0] is the camera ray's first segment
-    glm::vec3 beta_outer(1.0f);
-    // After a bounce: the next ray is the last one (emission only) past max_bounces; false when Russian roulette
-    // ends the path.
-    auto next_vertex = [&](glm::vec3& weight) {
-        if (bounce >= st_.max_bounces) {
-            last = true;
-        } else {
-            ++bounce;
-            if (bounce > 3) {
-                // Russian roulette keeps long paths unbiased and cheap.
-                const glm::vec3 b = weight * beta_outer;  // the whole path's throughput
-                const float q = std::min(0.95f, std::max(b.x, std::max(b.y, b.z)));
-                if (rng.next() >= q) return false;
-                weight /= q;
-            }
+    glm::vec3 beta_outer{1.0f};
+};
+
+// A diffuse bounce off a segment's LIT or BAKED_SHADOWED Gaussians, when the path takes one.
+struct PathIntegrator::GaussianBounce {
+    bool taken = false;
+    Ray ray{};
+    float pdf = 0.0f;
+    glm::vec3 beta{0.0f};
+};
+
+// After a bounce: the next ray is the last one (emission only) past max_bounces; false when Russian roulette
+// ends the path.
+bool PathIntegrator::next_vertex(PathState& p) const {
+    if (p.bounce >= st_.max_bounces) {
+        p.last = true;
+    } else {
+        ++p.bounce;
+        if (p.bounce > 3) {
+            // Russian roulette keeps long paths unbiased and cheap.
+            const glm::vec3 b = p.beta * p.beta_outer;  // the whole path's throughput
+            const float q = std::min(0.95f, std::max(b.x, std::max(b.y, b.z)));
+            if (p.rng.next() >= q) return false;
+            p.beta /= q;
         }
-        return true;
-    };
-    for (;;) {
-        Segment seg = trace_with_lights(ray, first, mis_pdf, beta, radiance, rng, c);
-        first = nullptr;
-        // What the radiance behind the segment is weighted with here (a display run applies its own T later).
-        float behind_weight = seg.transmittance;
-        // A segment holding LIT or BAKED_SHADOWED Gaussians is combined in linear light: their shaded radiance is
-        // linear and is added below at this level, and a bounce off them replaces what lies behind. Its baked
-        // Gaussians' display composite D is then taken to linear on its own (L = linear(D) + T L_behind), an
-        // approximation only where baked and shaded splats overlap along a ray.
-        const bool display_run = display && seg.gaussians > 0 && seg.shading.empty();
-        if (display && seg.gaussians > 0 && !display_run)
-            for (int ch = 0; ch < 3; ++ch) seg.radiance[ch] = srgb_to_linear_tabulated(seg.radiance[ch]);
-        if (display_run) {
-            // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
-            // (the ray still takes their transmittance).
-            runs.push_back({radiance, beta, last ? glm::vec3(0.0f) : seg.radiance, seg.transmittance});
-            camera_run = camera_run || first_trace;
-            radiance = glm::vec3(0.0f);
-            beta_outer *= beta;
-            beta = glm::vec3(1.0f);
-            behind_weight = 1.0f;
-        } else if (!last) {
-            radiance += beta * seg.radiance;
-        }
-        first_trace = false;
-        if (camera_segment) {
-            camera_gaussians += seg.gaussians;
-            if (depth == kInf && seg.depth < kInf) {
-                depth = seg.depth;
-                normal = seg.normal;
-                normal_at_mesh = seg.depth_at_mesh;
-            }
-        }
-        // LIT and BAKED_SHADOWED Gaussians (gaussian_shading.h): next-event estimation at the segment's shading
-        // point, and a diffuse bounce off it. Where a mesh lies behind semi-transparent Gaussians the path goes on
-        // either way: it bounces with probability p = a / (a + T) (a: the largest channel of the composited albedo)
-        // and the chosen branch's weight is divided by its probability.
-        bool gaussian_bounce = false;
-        Ray bounce_ray{};
-        float bounce_pdf = 0.0f;
-        glm::vec3 bounce_beta(0.0f);
-        if (!last && !seg.shading.empty()) {
-            const GaussianShadingPoint& sp = seg.shading;
-            float p_bounce = 0.0f;
-            if (sp.lit()) {
-                const float a = std::max(sp.albedo_sum.x, std::max(sp.albedo_sum.y, sp.albedo_sum.z));
-                p_bounce = seg.mesh && !seg.terminated ? a / (a + seg.transmittance) : 1.0f;
-            }
-            radiance += beta * tracer_.shader().direct(sp, p_bounce, rng, c);
-            if (p_bounce > 0.0f) {
-                if (p_bounce >= 1.0f || rng.next() < p_bounce) {
-                    gaussian_bounce = true;
-                    bounce_ray = tracer_.shader().bounce_ray(sp, rng, bounce_pdf);
-                    bounce_pdf *= p_bounce;
-                    bounce_beta = beta * sp.albedo_sum / p_bounce;
-                } else {
-                    beta /= 1.0f - p_bounce;
-                }
-            }
-        }
-        if (seg.terminated) {
-            if (camera_segment) alpha = 1.0f;
-            if (!gaussian_bounce) break;
-        } else if (!seg.mesh) {
-            if (camera_segment) {
-                alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
-                if (!st_.transparent_background) radiance += beta * behind_weight * world_;
-            } else {
-                radiance += beta * behind_weight * world_;
-            }
-            if (!gaussian_bounce) break;
-        } else if (gaussian_bounce && camera_segment) {
-            alpha = 1.0f;  // the mesh behind covers the pixel
-            if (normal_at_mesh) {
-                const Surface sf = surface(seg, ray);
-                normal = glm::dot(sf.ng, ray.d) < 0.0f ? sf.ng : -sf.ng;
-                normal_at_mesh = false;
-            }
-        }
-        if (gaussian_bounce) {
-            camera_segment = false;
-            beta = bounce_beta;
-            after_diffuse = true;
-            mis_pdf = bounce_pdf;
-            if (!next_vertex(beta)) break;
-            ray = bounce_ray;
-            continue;
-        }
-        beta *= behind_weight;
-        const Surface sf = surface(seg, ray);
-        const Material& mat = s_.materials.empty() ? default_material : s_.materials[sf.material];
-        const bool entering = glm::dot(sf.ng, ray.d) < 0.0f;
-        const glm::vec3 ng = entering ? sf.ng : -sf.ng;  // facing the incoming ray
-        if (normal_at_mesh) {
-            normal = ng;
-            normal_at_mesh = false;
-        }
-        const float eps =
-            1e-4f * std::max(1.0f, std::max(std::abs(sf.p.x), std::max(std::abs(sf.p.y), std::abs(sf.p.z))));
-        if (mat.alpha < 1.0f && rng.next() >= mat.alpha && ++passes < 256) {
-            // Stochastic coverage: continue straight through.
-            if (camera_segment) alpha = 1.0f - (1.0f - alpha) * seg.transmittance;
-            ray = Ray{sf.p - ng * eps, ray.d, 0.0f, kInf};
-            continue;
-        }
-        if (camera_segment) {
-            alpha = 1.0f;
-            if (depth == kInf) {
-                depth = seg.t;
-                normal = ng;
-            }
-            camera_segment = false;
-        }
-        radiance += beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
-                    mat.emission_strength;
-        if (last) break;
-        glm::vec3 ns = entering ? sf.ns : -sf.ns;
-        const glm::vec3 wo = -ray.d;
-        if (glm::dot(ns, wo) <= 0.0f) ns = ng;
-        LobeFilter filter;
-        if (after_diffuse) {
-            filter.reflective = st_.caustics_reflective;
-            filter.refractive = st_.caustics_refractive;
-        }
-        const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, wo, entering, filter);
-        if (bsdf.absorbs()) break;
-        const glm::vec3 p_out = sf.p + ng * eps;
-        if (bsdf.has_non_delta()) {
-            for (const Light& l : s_.lights) {
-                LightSample ls;
-                if (!sample_light(l, p_out, rng, ls)) continue;
-                if (glm::dot(ls.wi, ng) <= 0.0f) continue;
-                float pdf;
-                const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf);
-                const float cos_i = glm::dot(ns, ls.wi);
-                if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
-                const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
-                // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
-                const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
-                if (vis > 0.0f) radiance += beta * f * cos_i * ls.value * (vis * w);
-            }
-        }
-        BsdfSample bs;
-        if (!bsdf.sample(wo, rng, bs)) break;
-        beta *= bs.weight;
-        if (!(beta.x > 0.0f || beta.y > 0.0f || beta.z > 0.0f)) break;
-        after_diffuse = bs.diffuse;
-        mis_pdf = bs.delta ? 0.0f : bs.pdf;
-        if (!next_vertex(beta)) break;
-        const bool below = glm::dot(bs.wi, ng) < 0.0f;
-        ray = Ray{sf.p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
     }
-    // Close the runs, innermost first: L = linear(D + T display(L_behind)).
-    const std::size_t kept = camera_run ? 1 : 0;
-    while (runs.size() > kept) {
-        const DisplayRun& r = runs.back();
+    return true;
+}
+
+// The Gaussians of a segment: their radiance added to the path's (or a display run opened on them), and on the
+// camera segment their count and the coverage's first depth and normal. Returns what the radiance behind the segment
+// is weighted with here (a display run applies its own T later).
+float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
+    float behind_weight = seg.transmittance;
+    // A segment holding LIT or BAKED_SHADOWED Gaussians is combined in linear light: their shaded radiance is
+    // linear and is added below at this level, and a bounce off them replaces what lies behind. Its baked
+    // Gaussians' display composite D is then taken to linear on its own (L = linear(D) + T L_behind), an
+    // approximation only where baked and shaded splats overlap along a ray.
+    const bool display_run = p.display && seg.gaussians > 0 && seg.shading.empty();
+    if (p.display && seg.gaussians > 0 && !display_run)
+        for (int ch = 0; ch < 3; ++ch) seg.radiance[ch] = srgb_to_linear_tabulated(seg.radiance[ch]);
+    if (display_run) {
+        // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
+        // (the ray still takes their transmittance).
+        p.runs.push_back({p.radiance, p.beta, p.last ? glm::vec3(0.0f) : seg.radiance, seg.transmittance});
+        p.camera_run = p.camera_run || p.first_trace;
+        p.radiance = glm::vec3(0.0f);
+        p.beta_outer *= p.beta;
+        p.beta = glm::vec3(1.0f);
+        behind_weight = 1.0f;
+    } else if (!p.last) {
+        p.radiance += p.beta * seg.radiance;
+    }
+    p.first_trace = false;
+    if (p.camera_segment) {
+        p.camera_gaussians += seg.gaussians;
+        if (p.depth == kInf && seg.depth < kInf) {
+            p.depth = seg.depth;
+            p.normal = seg.normal;
+            p.normal_at_mesh = seg.depth_at_mesh;
+        }
+    }
+    return behind_weight;
+}
+
+// LIT and BAKED_SHADOWED Gaussians (gaussian_shading.h): next-event estimation at the segment's shading point, and a
+// diffuse bounce off it. Where a mesh lies behind semi-transparent Gaussians the path goes on either way: it bounces
+// with probability p = a / (a + T) (a: the largest channel of the composited albedo) and the chosen branch's weight
+// is divided by its probability.
+PathIntegrator::GaussianBounce PathIntegrator::shade_gaussians(PathState& p, const Segment& seg, Counters& c) const {
+    GaussianBounce bounce;
+    if (p.last || seg.shading.empty()) return bounce;
+    const GaussianShadingPoint& sp = seg.shading;
+    float p_bounce = 0.0f;
+    if (sp.lit()) {
+        const float a = std::max(sp.albedo_sum.x, std::max(sp.albedo_sum.y, sp.albedo_sum.z));
+        p_bounce = seg.mesh && !seg.terminated ? a / (a + seg.transmittance) : 1.0f;
+    }
+    p.radiance += p.beta * tracer_.shader().direct(sp, p_bounce, p.rng, c);
+    if (p_bounce > 0.0f) {
+        if (p_bounce >= 1.0f || p.rng.next() < p_bounce) {
+            bounce.taken = true;
+            bounce.ray = tracer_.shader().bounce_ray(sp, p.rng, bounce.pdf);
+            bounce.pdf *= p_bounce;
+            bounce.beta = p.beta * sp.albedo_sum / p_bounce;
+        } else {
+            p.beta /= 1.0f - p_bounce;
+        }
+    }
+    return bounce;
+}
+
+// Where the segment ends other than on a mesh the path shades: it stopped in the Gaussians (opaque), or escaped to
+// the world. Returns whether the path ends there (it goes on when it bounces off the segment's Gaussians).
+bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce) const {
+    if (seg.terminated) {
+        if (p.camera_segment) p.alpha = 1.0f;
+        return !gaussian_bounce;
+    }
+    if (!seg.mesh) {
+        if (p.camera_segment) {
+            p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
+            if (!st_.transparent_background) p.radiance += p.beta * behind_weight * world_;
+        } else {
+            p.radiance += p.beta * behind_weight * world_;
+        }
+        return !gaussian_bounce;
+    }
+    if (gaussian_bounce && p.camera_segment) {
+        p.alpha = 1.0f;  // the mesh behind covers the pixel
+        if (p.normal_at_mesh) {
+            const Surface sf = surface(seg, p.ray);
+            p.normal = glm::dot(sf.ng, p.ray.d) < 0.0f ? sf.ng : -sf.ng;
+            p.normal_at_mesh = false;
+        }
+    }
+    return false;
+}
+
+// The path's next ray from a bounce off Gaussians; false when Russian roulette ends the path.
+bool PathIntegrator::bounce_off_gaussians(PathState& p, const GaussianBounce& bounce) const {
+    p.camera_segment = false;
+    p.beta = bounce.beta;
+    p.after_diffuse = true;
+    p.mis_pdf = bounce.pdf;
+    if (!next_vertex(p)) return false;
+    p.ray = bounce.ray;
+    return true;
+}
+
+// The mesh hit a segment ends on: stochastic coverage (the ray goes on straight through), else the camera segment's
+// coverage, depth and normal, then shade_hit. Returns whether the path goes on.
+bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) const {
+    const Surface sf = surface(seg, p.ray);
+    const Material& mat = s_.materials.empty() ? default_material_ : s_.materials[sf.material];
+    const bool entering = glm::dot(sf.ng, p.ray.d) < 0.0f;
+    const glm::vec3 ng = entering ? sf.ng : -sf.ng;  // facing the incoming ray
+    if (p.normal_at_mesh) {
+        p.normal = ng;
+        p.normal_at_mesh = false;
+    }
+    const float eps =
+        1e-4f * std::max(1.0f, std::max(std::abs(sf.p.x), std::max(std::abs(sf.p.y), std::abs(sf.p.z))));
+    if (mat.alpha < 1.0f && p.rng.next() >= mat.alpha && ++p.passes < 256) {
+        // Stochastic coverage: continue straight through.
+        if (p.camera_segment) p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
+        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf};
+        return true;
+    }
+    if (p.camera_segment) {
+        p.alpha = 1.0f;
+        if (p.depth == kInf) {
+            p.depth = seg.t;
+            p.normal = ng;
+        }
+        p.camera_segment = false;
+    }
+    return shade_hit(p, sf, mat, entering, ng, eps, c);
+}
+
+// Shading at a mesh hit: its emission, next-event estimation with the lights, then the next bounce. Returns whether
+// the path goes on.
+bool PathIntegrator::shade_hit(PathState& p, const Surface& sf, const Material& mat, bool entering,
+                               const glm::vec3& ng, float eps, Counters& c) const {
+    p.radiance += p.beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
+                  mat.emission_strength;
+    if (p.last) return false;
+    glm::vec3 ns = entering ? sf.ns : -sf.ns;
+    const glm::vec3 wo = -p.ray.d;
+    if (glm::dot(ns, wo) <= 0.0f) ns = ng;
+    LobeFilter filter;
+    if (p.after_diffuse) {
+        filter.reflective = st_.caustics_reflective;
+        filter.refractive = st_.caustics_refractive;
+    }
+    const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, wo, entering, filter);
+    if (bsdf.absorbs()) return false;
+    if (bsdf.has_non_delta()) add_direct_lighting(p, bsdf, sf.p + ng * eps, ng, ns, wo, c);
+    return next_bounce(p, bsdf, sf.p, ng, wo, eps);
+}
+
+// Next-event estimation at `p_out` (the hit, offset along ng): one sample of every light, each weighted against
+// BSDF sampling when rays can hit it.
+void PathIntegrator::add_direct_lighting(PathState& p, const Bsdf& bsdf, const glm::vec3& p_out, const glm::vec3& ng,
+                                         const glm::vec3& ns, const glm::vec3& wo, Counters& c) const {
+    for (const Light& l : s_.lights) {
+        LightSample ls;
+        if (!sample_light(l, p_out, p.rng, ls)) continue;
+        if (glm::dot(ls.wi, ng) <= 0.0f) continue;
+        float pdf;
+        const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf);
+        const float cos_i = glm::dot(ns, ls.wi);
+        if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
+        const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
+        // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
+        const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
+        if (vis > 0.0f) p.radiance += p.beta * f * cos_i * ls.value * (vis * w);
+    }
+}
+
+// The next bounce from the mesh hit at `hit_p`: a BSDF sample, then Russian roulette (next_vertex). Returns whether
+// the path goes on.
+bool PathIntegrator::next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3& hit_p, const glm::vec3& ng,
+                                 const glm::vec3& wo, float eps) const {
+    BsdfSample bs;
+    if (!bsdf.sample(wo, p.rng, bs)) return false;
+    p.beta *= bs.weight;
+    if (!(p.beta.x > 0.0f || p.beta.y > 0.0f || p.beta.z > 0.0f)) return false;
+    p.after_diffuse = bs.diffuse;
+    p.mis_pdf = bs.delta ? 0.0f : bs.pdf;
+    if (!next_vertex(p)) return false;
+    const bool below = glm::dot(bs.wi, ng) < 0.0f;
+    p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
+    return true;
+}
+
+// The film's sample from a finished path. Its display runs close innermost first: L = linear(D + T display(L_behind));
+// the camera run goes to the film as its parts (see SampleRecord), and a path without one is all behind (D = 0,
+// T = 1).
+SampleRecord PathIntegrator::sample_record(PathState& p) const {
+    const std::size_t kept = p.camera_run ? 1 : 0;
+    while (p.runs.size() > kept) {
+        const DisplayRun& r = p.runs.back();
         glm::vec3 l;
         for (int ch = 0; ch < 3; ++ch)
-            l[ch] = srgb_to_linear_tabulated(r.display[ch] + r.transmittance * linear_to_srgb(radiance[ch]));
-        radiance = r.outer_radiance + r.outer_beta * l;
-        runs.pop_back();
+            l[ch] = srgb_to_linear_tabulated(r.display[ch] + r.transmittance * linear_to_srgb(p.radiance[ch]));
+        p.radiance = r.outer_radiance + r.outer_beta * l;
+        p.runs.pop_back();
     }
     SampleRecord record;
-    if (display) {
-        // The camera run goes to the film as its parts (see SampleRecord); a path without one is all behind
-        // (D = 0, T = 1).
-        glm::vec3 front(0.0f), d(0.0f), behind = radiance;
+    if (p.display) {
+        glm::vec3 front(0.0f), d(0.0f), behind = p.radiance;
         float t = 1.0f;
-        if (camera_run) {
-            front = runs[0].outer_radiance;
-            d = runs[0].display;
-            t = runs[0].transmittance;
-            behind = t * radiance;
+        if (p.camera_run) {
+            front = p.runs[0].outer_radiance;
+            d = p.runs[0].display;
+            t = p.runs[0].transmittance;
+            behind = t * p.radiance;
         }
-        radiance = front;
+        p.radiance = front;
         record.display_radiance = {d.x, d.y, d.z};
         record.display_transmittance = t;
         record.behind_radiance = {behind.x, behind.y, behind.z};
         record.display_blend = true;
     }
-    record.radiance = {radiance.x, radiance.y, radiance.z};
-    record.alpha = alpha;
-    record.depth = depth;
-    record.normal = {normal.x, normal.y, normal.z};
-    record.gaussian_count = float(camera_gaussians);
+    record.radiance = {p.radiance.x, p.radiance.y, p.radiance.z};
+    record.alpha = p.alpha;
+    record.depth = p.depth;
+    record.normal = {p.normal.x, p.normal.y, p.normal.z};
+    record.gaussian_count = float(p.camera_gaussians);
     return record;
+}
+
+// Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
+// last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
+// (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
+SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segment* first) const {
+    thread_local std::vector<DisplayRun> runs;
+    runs.clear();
+    PathState p(ray, rng, runs, st_.blend_space == BlendSpace::Display);
+    for (;;) {
+        Segment seg = trace_with_lights(p.ray, first, p.mis_pdf, p.beta, p.radiance, rng, c);
+        first = nullptr;
+        const float behind_weight = add_gaussians(p, seg);
+        const GaussianBounce gaussian_bounce = shade_gaussians(p, seg, c);
+        if (end_segment(p, seg, behind_weight, gaussian_bounce.taken)) break;
+        if (gaussian_bounce.taken) {
+            if (!bounce_off_gaussians(p, gaussian_bounce)) break;
+            continue;
+        }
+        p.beta *= behind_weight;
+        if (!mesh_hit(p, seg, c)) break;
+    }
+    return sample_record(p);
 }
 
 }  // namespace raysplats

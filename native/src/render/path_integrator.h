@@ -7,10 +7,12 @@
 
 #include <glm/glm.hpp>
 
+#include "bsdf.h"
 #include "gaussian_segment_tracer.h"
 #include "light_sampling.h"
 #include "ray.h"
-#include "raysplats/render/renderer.h"
+#include "raysplats/render/film.h"
+#include "raysplats/render/render_settings.h"
 #include "render_math.h"
 #include "scene_impl.h"
 #include "shadow_visibility.h"
@@ -36,16 +38,36 @@ public:
     SampleRecord path(Ray ray, Sampler& rng, Counters& c, const Segment* first = nullptr) const;
 
 private:
+    struct DisplayRun;
+    struct PathState;
+    struct GaussianBounce;
+
     Surface surface(const Segment& seg, const Ray& ray) const;
     int nearest_light_hit(const Ray& ray, LightHit& hit) const;
     Segment trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf, const glm::vec3& beta,
                               glm::vec3& radiance, Sampler& rng, Counters& c) const;
+    // The camera segment and every later one: the Gaussians up to a mesh hit, their shading, and how it ends.
+    float add_gaussians(PathState& p, Segment& seg) const;
+    GaussianBounce shade_gaussians(PathState& p, const Segment& seg, Counters& c) const;
+    bool end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce) const;
+    bool bounce_off_gaussians(PathState& p, const GaussianBounce& bounce) const;
+    // Shading at a mesh hit, and the next bounce.
+    bool mesh_hit(PathState& p, const Segment& seg, Counters& c) const;
+    bool shade_hit(PathState& p, const Surface& sf, const Material& mat, bool entering, const glm::vec3& ng,
+                   float eps, Counters& c) const;
+    void add_direct_lighting(PathState& p, const Bsdf& bsdf, const glm::vec3& p_out, const glm::vec3& ng,
+                             const glm::vec3& ns, const glm::vec3& wo, Counters& c) const;
+    bool next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3& hit_p, const glm::vec3& ng,
+                     const glm::vec3& wo, float eps) const;
+    bool next_vertex(PathState& p) const;
+    SampleRecord sample_record(PathState& p) const;
 
     const Scene::Impl& s_;
     const RenderSettings& st_;
     const GaussianSegmentTracer& tracer_;
     const ShadowVisibility& shadow_;
     glm::vec3 world_;
+    const Material default_material_{};  // for meshes of a scene without materials
 };
 
 }  // namespace raysplats

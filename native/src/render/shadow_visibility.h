@@ -5,7 +5,7 @@
 #include <glm/glm.hpp>
 
 #include "ray.h"
-#include "raysplats/render/renderer.h"
+#include "raysplats/render/render_settings.h"
 #include "render_math.h"
 #include "scene_impl.h"
 

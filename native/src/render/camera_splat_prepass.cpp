@@ -1,0 +1,312 @@
+#include "camera_splat_prepass.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include "gaussian_callbacks.h"
+#include "gaussian_primitives.h"
+#include "pixel_filter.h"
+#include "raysplats/errors.h"
+#include "render_math.h"
+
+namespace raysplats {
+
+namespace {
+
+constexpr float kDilation = 0.3f;           // px^2 added to the 2D covariance's diagonal (3DGS computeCov2D)
+constexpr float kJacobianClamp = 1.3f;      // x/z and y/z clamped to 1.3 x the frustum's half extent (3DGS)
+constexpr float kFootprintSigmas = 3.0f;    // square half side in standard deviations (3DGS getRect's radius)
+
+// Pixels of the pixel filter's reach around a pixel (PixelFilterSampler::reach), rounded up, plus one: camera samples
+// fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of pixels (from the region's corner) each
+// lie in one tile.
+int filter_margin(const RenderSettings& st) {
+    const int reach = (st.jitter ? int(std::ceil(PixelFilterSampler::reach(st.pixel_filter, st.filter_width))) : 0) + 1;
+    return (reach + 3) / 4 * 4;
+}
+
+// Not a rank (rank_of), not a key (keys).
+constexpr std::uint32_t kNotVisible = 0xffffffffu;
+constexpr std::uint64_t kNotVisibleKey = ~std::uint64_t(0);
+
+bool is_cancelled(const std::atomic<bool>* cancel) { return cancel && cancel->load(std::memory_order_relaxed); }
+
+// Calls visit(k, set, j) for primitive j of every Gaussian set k of the scene, a set's primitives in parallel; a
+// cancel stops it within a block of them.
+template <typename Visit>
+void for_each_gaussian(const Scene::Impl& scene, const std::atomic<bool>* cancel, const Visit& visit) {
+    for (std::size_t k = 0; k < scene.gaussians.size(); ++k) {
+        const GaussianSet& set = *scene.gaussians[k];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.prims.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              if (is_cancelled(cancel)) return;
+                              for (std::size_t j = r.begin(); j != r.end(); ++j) visit(k, set, j);
+                          });
+    }
+}
+
+}  // namespace
+
+CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
+                                       const std::atomic<bool>* cancel)
+    : s_(scene) {
+    const CameraRayGenerator rays(camera, settings.width, settings.height);
+    proj_ = rays.pinhole_projection();
+    const glm::mat3 camera_linear = linear_part(camera.camera_to_world);
+    world_to_camera_ = glm::inverse(camera_linear);
+    camera_origin_ = translation_part(camera.camera_to_world);
+    // Depths in camera space: a scaled camera matrix scales them, and its clip distances are in the same units
+    // (camera.cpp: the clip range is measured along the unscaled view axis).
+    near_ = camera.clip_start;
+    far_ = camera.clip_end;
+    lim_x_ = kJacobianClamp * proj_.half_width_tan;
+    lim_y_ = kJacobianClamp * proj_.half_height_tan;
+    set_up_grids(settings);
+
+    // Every Gaussian of the scene has a global index: primitive j of set k is set_base[k] + j.
+    std::vector<std::size_t> set_base(s_.gaussians.size() + 1, 0);
+    for (std::size_t k = 0; k < s_.gaussians.size(); ++k) set_base[k + 1] = set_base[k] + s_.gaussians[k]->prims.size();
+    const std::size_t total = set_base.back();
+    if (total >= std::size_t(kNotVisible))
+        throw Error("camera-ray splatting: " + std::to_string(total) + " Gaussians are more than it indexes (2^32 - 1)");
+
+    std::vector<std::uint64_t> keys;
+    if (!sorted_keys(set_base, keys, cancel) || is_cancelled(cancel)) return;
+    // The camera ray's SH direction is camera -> centre (GaussianSet::display_color with the camera's origin).
+    gather(keys, set_base, settings.blend_space == BlendSpace::Display, cancel);
+    if (is_cancelled(cancel)) return;
+
+    // Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
+    // view of a big scene that list holds thousands of splats of a pixel or two, of which the packet's sixteenth of the
+    // tile meets a few percent, so splatting such a view cost several times the traced render. Small splats therefore
+    // go into lists of the packets' own 4 px tiles; big ones stay in 16 px lists, where they cost 16x fewer entries
+    // (4 px tiles alone multiply a big splat's entries, and the pre-pass with them). A packet merges its two lists.
+    std::vector<std::uint8_t> level(splats_.size());
+    for (std::size_t i = 0; i < splats_.size(); ++i) level[i] = splats_[i].half_extent <= kFineSplatMaxHalfExtent;
+    bin(coarse_, level, 0, cancel);
+    if (is_cancelled(cancel)) return;
+    bin(fine_, level, 1, cancel);
+}
+
+float CameraSplatPrepass::view_depth(const glm::vec3& world_point) const {
+    return -(world_to_camera_ * (world_point - camera_origin_)).z;
+}
+
+void CameraSplatPrepass::set_up_grids(const RenderSettings& settings) {
+    const PixelRect region = render_region_of(settings);
+    const int margin = filter_margin(settings);
+    grid_x0_ = region.x0 - margin;
+    grid_y0_ = region.y0 - margin;
+    coarse_.size = kTileSize;
+    coarse_.nx = (region.width() + 2 * margin + kTileSize - 1) / kTileSize;
+    coarse_.ny = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
+    // The fine grid subdivides the coarse one exactly, so that a fine tile lies in one coarse tile.
+    static_assert(kTileSize % kFineTileSize == 0, "fine tiles subdivide coarse tiles");
+    fine_.size = kFineTileSize;
+    fine_.nx = coarse_.nx * (kTileSize / kFineTileSize);
+    fine_.ny = coarse_.ny * (kTileSize / kFineTileSize);
+    grid_x1_ = float(grid_x0_ + coarse_.nx * kTileSize);
+    grid_y1_ = float(grid_y0_ + coarse_.ny * kTileSize);
+    // A packet's samples lie within this of its pixels' squares (jitter: the pixel filter's reach from the centre).
+    sample_pad_ = settings.jitter
+                      ? std::max(0.0f, PixelFilterSampler::reach(settings.pixel_filter, settings.filter_width) - 0.5f)
+                      : 0.0f;
+}
+
+bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const {
+    const GaussianPrimitive& g = set.prims[prim];
+    if (!(g.opacity >= kMinAlpha)) return false;
+    const glm::vec3 p = world_to_camera_ * (set.world_center(prim) - camera_origin_);
+    const float z = -p.z;
+    if (!(z > near_ && z < far_)) return false;
+    // Sigma = L L^T in the cloud's frame, L = M^-1 (M: rows 0..2 of the primitive, GaussianPrimitive), whose
+    // columns are the Gaussian's axes times their scales.
+    glm::mat3 m;
+    m[0] = glm::vec3(g.row0.x, g.row1.x, g.row2.x);
+    m[1] = glm::vec3(g.row0.y, g.row1.y, g.row2.y);
+    m[2] = glm::vec3(g.row0.z, g.row1.z, g.row2.z);
+    glm::mat3 l = glm::inverse(m);
+    if (set.flat) {
+        // A flat primitive's third row is its unit normal: its column of L is the unit axis, scaled here by the
+        // Gaussian's smallest scale (as make_primitive clamps it), so that the footprint is the 3D Gaussian's, as
+        // a viewer draws it, in either mode (the mode is the geometry rays trace).
+        const float* s = &set.cloud->scales[3 * std::size_t(set.cloud_index[prim])];
+        const float largest = std::max(s[0], std::max(s[1], s[2]));
+        l[2] *= std::max(std::min(s[0], std::min(s[1], s[2])), 1e-6f * largest);
+    }
+    // The Jacobian of (X, Y, Z) -> (cx + fx X / z, cy - fy Y / z), z = -Z, at the centre (x/z, y/z clamped
+    // about the frustum's centre, forward.cu computeCov2D).
+    const float tx = std::clamp(p.x / z, proj_.center_x_tan - lim_x_, proj_.center_x_tan + lim_x_);
+    const float ty = std::clamp(p.y / z, proj_.center_y_tan - lim_y_, proj_.center_y_tan + lim_y_);
+    const glm::vec3 j0(proj_.fx / z, 0.0f, proj_.fx * tx / z), j1(0.0f, -proj_.fy / z, -proj_.fy * ty / z);
+    // Rows of J W A (2 x 3), applied to L's columns: K = J W A L, Sigma' = K K^T.
+    const glm::mat3 wa = world_to_camera_ * set.linear;
+    const glm::vec3 r0 = glm::transpose(wa) * j0, r1 = glm::transpose(wa) * j1;
+    double a = kDilation, b = 0.0, c = kDilation;
+    for (int k = 0; k < 3; ++k) {
+        const double k0 = glm::dot(r0, l[k]), k1 = glm::dot(r1, l[k]);
+        a += k0 * k0;
+        b += k0 * k1;
+        c += k1 * k1;
+    }
+    const double det = a * c - b * b;
+    if (!(det > 0.0) || !std::isfinite(det)) return false;
+    const double mid = 0.5 * (a + c);
+    const double lambda_max = mid + std::sqrt(std::max(0.1, mid * mid - det));
+    const float half = float(kFootprintSigmas * std::sqrt(lambda_max));
+    const float u = proj_.cx + proj_.fx * p.x / z, v = proj_.cy - proj_.fy * p.y / z;
+    if (!(u + half >= float(grid_x0_) && u - half < grid_x1_ && v + half >= float(grid_y0_) && v - half < grid_y1_))
+        return false;
+    out.u = u;
+    out.v = v;
+    out.conic[0] = float(c / det);
+    out.conic[1] = float(-b / det);
+    out.conic[2] = float(a / det);
+    out.opacity = g.opacity;
+    out.depth = z;
+    out.half_extent = half;
+    out.least_power = std::log(kMinAlpha / g.opacity) - 1e-3f;
+    return true;
+}
+
+bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
+                                     const std::atomic<bool>* cancel) const {
+    // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
+    // by scene order), sorted.
+    keys.assign(set_base.back(), kNotVisibleKey);
+    for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
+        ProjectedSplat ps;
+        if (!project(set, std::uint32_t(j), ps)) return;
+        std::uint32_t depth_bits;
+        std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
+        keys[set_base[k] + j] = std::uint64_t(depth_bits) << 32 | (set_base[k] + j);
+    });
+    if (is_cancelled(cancel)) return false;
+    keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
+    tbb::parallel_sort(keys.begin(), keys.end());
+    return true;
+}
+
+void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, const std::vector<std::size_t>& set_base,
+                                bool display, const std::atomic<bool>* cancel) {
+    // The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
+    // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
+    std::vector<std::uint32_t> rank_of(set_base.back(), kNotVisible);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
+    });
+    splats_.resize(keys.size());
+    sources_.resize(keys.size());
+    keys.clear();
+    keys.shrink_to_fit();
+    const glm::vec3 origin = camera_origin_;
+    for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
+        const std::uint32_t rank = rank_of[set_base[k] + j];
+        if (rank == kNotVisible) return;
+        const auto prim = std::uint32_t(j);
+        ProjectedSplat& splat = splats_[rank];
+        project(set, prim, splat);
+        splat.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
+        sources_[rank] = SplatSource{set.index, prim};
+    });
+}
+
+// The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
+// q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile widened by the samples' pad.
+// Outside that ellipse every sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps
+// thin and faint Gaussians out of most of their square's tiles. The pad lets a packet read only the lists of its
+// pixels' tile, wherever jitter put its samples (a list per tile a sample fell in cost a packet 2-4 reads).
+template <typename Visit>
+void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const {
+    const int size = lists.size;
+    const double pad = sample_pad_ + 1e-3;  // (and a margin for rounding)
+    const float reach_x = ps.half_extent + float(pad);
+    const int tx0 = std::max(0, int(std::floor((ps.u - reach_x - float(grid_x0_)) / size)));
+    const int ty0 = std::max(0, int(std::floor((ps.v - reach_x - float(grid_y0_)) / size)));
+    const int tx1 = std::min(lists.nx - 1, int(std::floor((ps.u + reach_x - float(grid_x0_)) / size)));
+    const int ty1 = std::min(lists.ny - 1, int(std::floor((ps.v + reach_x - float(grid_y0_)) / size)));
+    // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
+    const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
+    const double a = ps.conic[0], b = ps.conic[1], c = ps.conic[2];
+    auto q = [&](double dx, double dy) { return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy; };
+    for (int ty = ty0; ty <= ty1; ++ty) {
+        const double ly = double(grid_y0_ + ty * size) - ps.v - pad, hy = ly + size + 2.0 * pad;
+        for (int tx = tx0; tx <= tx1; ++tx) {
+            const double lx = double(grid_x0_ + tx * size) - ps.u - pad, hx = lx + size + 2.0 * pad;
+            // The minimum of the convex q over the tile: 0 when the centre is inside, else on an edge, where q is a
+            // parabola in the free coordinate (minimised at -b x / c, or -b y / a, clamped to the edge).
+            double least = 0.0;
+            if (!(lx <= 0.0 && 0.0 <= hx && ly <= 0.0 && 0.0 <= hy)) {
+                least = std::min(std::min(q(lx, std::clamp(-b * lx / c, ly, hy)), q(hx, std::clamp(-b * hx / c, ly, hy))),
+                                 std::min(q(std::clamp(-b * ly / a, lx, hx), ly), q(std::clamp(-b * hy / a, lx, hx), hy)));
+            }
+            if (least <= reach) visit(std::size_t(ty) * lists.nx + tx);
+        }
+    }
+}
+
+void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
+                             const std::atomic<bool>* cancel) {
+    const std::size_t tile_count = std::size_t(lists.nx) * std::size_t(lists.ny);
+    // A counting sort by tile that keeps the depth order: the splats in chunks of consecutive ranks, each chunk's
+    // count per tile, every chunk's start in every list (the lists' offsets plus the counts of the chunks before it),
+    // and each chunk fills its splats in rank order from its starts. No atomics, and no list needs sorting after (a
+    // zoomed-out view of showroom_1.5M puts 8 M entries in a few hundred tiles, where atomic counters and a sort per
+    // list were most of the pre-pass).
+    // A cancel (the viewport stops its jobs on the UI thread before an edit reaches the scene) is seen within this
+    // many splats of a chunk, since binning a scene of ten million splats takes the order of a second on one thread.
+    constexpr std::size_t kCancelCheckInterval = 4096;
+    const std::size_t chunks = std::clamp<std::size_t>(splats_.size() / 256, 1, 16);
+    const std::size_t chunk_size = (splats_.size() + chunks - 1) / chunks;
+    std::vector<std::uint32_t> starts(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+        std::uint32_t* count = starts.data() + k * tile_count;
+        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
+            if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;
+            if (level[i] == which) for_each_tile(lists, splats_[i], [&](std::size_t t) { ++count[t]; });
+        }
+    });
+    if (is_cancelled(cancel)) return;
+    lists.offsets.assign(tile_count + 1, 0);
+    for (std::size_t t = 0; t < tile_count; ++t) {
+        std::uint64_t at = lists.offsets[t];
+        for (std::size_t k = 0; k < chunks; ++k) {
+            const std::uint32_t n = starts[k * tile_count + t];
+            starts[k * tile_count + t] = std::uint32_t(at - lists.offsets[t]);  // (within the list: fits 32 bits)
+            at += n;
+        }
+        lists.offsets[t + 1] = at;
+    }
+    lists.entries.resize(lists.offsets[tile_count]);
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+        std::uint32_t* cursor = starts.data() + k * tile_count;
+        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
+            if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;  // (the lists unfinished: nothing renders)
+            if (level[i] == which)
+                for_each_tile(lists, splats_[i], [&](std::size_t t) {
+                    lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i);
+                });
+        }
+    });
+}
+
+std::size_t CameraSplatPrepass::memory_bytes() const {
+    std::size_t bytes = splats_.capacity() * sizeof(ProjectedSplat) + sources_.capacity() * sizeof(SplatSource);
+    for (const SplatTileLists* lists : {&coarse_, &fine_})
+        bytes += lists->entries.capacity() * sizeof(std::uint32_t) + lists->offsets.capacity() * sizeof(std::uint64_t);
+    return bytes;
+}
+
+std::size_t SplatTileLists::tile_of(float x, float y, int x0, int y0) const {
+    const int tx = std::clamp(int(std::floor((x - float(x0)) / size)), 0, nx - 1);
+    const int ty = std::clamp(int(std::floor((y - float(y0)) / size)), 0, ny - 1);
+    return std::size_t(ty) * nx + tx;
+}
+
+}  // namespace raysplats

@@ -1,0 +1,117 @@
+// Camera-ray splatting's pre-pass (internal; camera_splatting.h has the model), as the 3DGS tile rasterizer: every
+// Gaussian projected in parallel, the visible ones sorted by depth, binned into screen tiles (a tile's list is the
+// ranks, in that sort, of the Gaussians that can reach alpha 1/255 in it: the square, intersected with the ellipse
+// where a exp(-q / 2) >= 1/255; 4 bytes an entry), each list in depth order. Unlike the rasterizer's one level of
+// 16 x 16 px tiles, there are two: splats whose square's half side is at most 4 px go into 4 x 4 px tiles, the bigger
+// ones into 16 x 16 px tiles (the reason and figures at CameraSplatPrepass::bin's call). Memory: 56 bytes a Gaussian
+// in view and 4 a tile entry, for the render's duration. A tile's lists hold every splat that a sample of its pixels
+// can see wherever the pixel filter's jitter puts it (the tile widened by the filter's reach), so a 4 x 4 packet of
+// camera rays (the grids are aligned to the packets) reads the lists of its own fine tile and of the coarse tile
+// holding it once, for all 16 samples, merged by rank. The grids cover the render region widened by the filter's
+// reach.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "raysplats/render/camera.h"
+#include "raysplats/render/render_settings.h"
+#include "scene_impl.h"
+
+namespace raysplats {
+
+// One Gaussian as the camera sees it, in depth order: what every camera sample reads (48 bytes; the colour is here,
+// not with the rest of what only the samples it covers read, because a second array meant a second cache miss)...
+struct alignas(16) ProjectedSplat {
+    float u, v;            // image position of the centre, pixels (x right, y down from the top-left corner)
+    float conic[3];        // Sigma'^-1 = [[conic0, conic1], [conic1, conic2]], 1 / px^2
+    float opacity;
+    float depth;           // view depth of the centre (along the camera's -Z axis, camera-space units)
+    float half_extent;     // half side of its square, pixels: 3 sqrt(lambda_max(Sigma'))
+    glm::vec3 color;       // in the render's blend space
+    // Below this exponent alpha is under 1/255: ln(1/255 / opacity), less a margin, so that the test skips the exp of
+    // most samples it misses and never one whose alpha reaches 1/255 (which is then tested exactly).
+    float least_power;
+};
+// ... and what only a sample it stops or makes opaque, or meshes_shadow_gaussians, reads.
+struct SplatSource {
+    std::uint32_t set, prim;  // its GaussianSet and primitive (normal, centre)
+};
+
+// One level of tile lists: nx x ny square tiles of `size` pixels from the grids' corner; tile t's splats are
+// entries[offsets[t] .. offsets[t + 1]), indices into the splats, ascending (= front to back).
+struct SplatTileLists {
+    int size = 0, nx = 0, ny = 0;
+    std::vector<std::uint64_t> offsets;
+    std::vector<std::uint32_t> entries;
+    // The tile holding image position (x, y), clamped to the grid whose corner is (x0, y0).
+    std::size_t tile_of(float x, float y, int x0, int y0) const;
+};
+
+class CameraSplatPrepass {
+public:
+    // The pre-pass. Returns early, incomplete, once `cancel` is set (the render loop then renders nothing).
+    CameraSplatPrepass(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
+                       const std::atomic<bool>* cancel);
+
+    static constexpr int kTileSize = 16;      // pixels, as the 3DGS rasterizer's BLOCK_X x BLOCK_Y
+    static constexpr int kFineTileSize = 4;   // pixels: one 4 x 4 packet of camera rays
+    // Splats whose square's half side is at most this (pixels) go into the fine lists, the others into the coarse.
+    // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 is slower.)
+    static constexpr float kFineSplatMaxHalfExtent = 4.0f;
+
+    // The visible Gaussians in (depth, set, prim) order, and their sources in the same order.
+    const std::vector<ProjectedSplat>& splats() const { return splats_; }
+    const std::vector<SplatSource>& sources() const { return sources_; }
+    // kTileSize tiles: the splats wider than kFineSplatMaxHalfExtent; kFineTileSize tiles, the packets' own: the
+    // smaller ones.
+    const SplatTileLists& coarse() const { return coarse_; }
+    const SplatTileLists& fine() const { return fine_; }
+    int grid_x0() const { return grid_x0_; }  // the tile grids' common corner, pixels
+    int grid_y0() const { return grid_y0_; }
+    // The view depth of a world point (along the camera's -Z axis).
+    float view_depth(const glm::vec3& world_point) const;
+    // Bytes held by the splats and tile lists.
+    std::size_t memory_bytes() const;
+
+private:
+    // The projection and the tile grids of the render region.
+    void set_up_grids(const RenderSettings& settings);
+    // Projects Gaussian `prim` of `set`: false when it is culled (near, far, faint, degenerate, off the grid).
+    bool project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const;
+    // The visible Gaussians' keys, depth above global index (set_base[k] + j: primitive j of set k), sorted; false
+    // when cancelled.
+    bool sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
+                     const std::atomic<bool>* cancel) const;
+    // The splats and their sources in the keys' order, with their colours (`display`: in display values); frees
+    // the keys.
+    void gather(std::vector<std::uint64_t>& keys, const std::vector<std::size_t>& set_base, bool display,
+                const std::atomic<bool>* cancel);
+    // Calls visit(t) for every tile t of `lists` where the splat can reach alpha 1/255.
+    template <typename Visit>
+    void for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const;
+    // Bins the splats of `level` into `lists` (sized already): only tiles the splat can reach alpha 1/255 in.
+    void bin(SplatTileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
+             const std::atomic<bool>* cancel);
+
+    const Scene::Impl& s_;
+    // World to camera space (the camera's inverse matrix: camera looks down -Z) and the projection to pixels:
+    // x = cx + fx X / z, y = cy - fy Y / z, z = -Z.
+    glm::mat3 world_to_camera_{1.0f};
+    glm::vec3 camera_origin_{0.0f};
+    CameraRayGenerator::PinholeProjection proj_{};
+    float near_ = 0.0f, far_ = 0.0f;        // the camera's clip range, view depth
+    float lim_x_ = 0.0f, lim_y_ = 0.0f;     // the Jacobian's clamp about the frustum's centre, in X / z and Y / z
+    int grid_x0_ = 0, grid_y0_ = 0;         // the tile grids' common corner, pixels
+    float grid_x1_ = 0.0f, grid_y1_ = 0.0f; // and their far corner
+    float sample_pad_ = 0.0f;               // how far outside its pixel's square a sample can fall, pixels
+    std::vector<ProjectedSplat> splats_;
+    std::vector<SplatSource> sources_;
+    SplatTileLists coarse_;
+    SplatTileLists fine_;
+};
+
+}  // namespace raysplats
