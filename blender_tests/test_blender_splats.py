@@ -83,10 +83,10 @@ class BlenderMadeSplatObject(unittest.TestCase):
         self.file = st.native().read_splats(st.data_file(SCENE))
 
     def test_is_a_splat_object_whose_up_axis_is_its_matrix(self):
-        self.assertTrue(compact_points.is_compact_object(self.obj))
+        self.assertEqual(splat_object.kind_of(self.obj), splat_object.POINTS)
         self.assertTrue(splat_object.is_splat_object(self.obj))
         self.assertEqual(splat_object.up_axis_of(self.obj), "Z")
-        assert_close(self, blender_splats.read_native_splats(self.obj.data), self.file, "Blender's import")
+        assert_close(self, blender_splats.read_blender_splats(self.obj.data), self.file, "Blender's import")
 
     def test_untouched_export_gives_the_files_values_in_every_format(self):
         # The add-on's own import of the file (compact points, the file's axes) exported the same way is the
@@ -148,7 +148,7 @@ class BlenderMadeSplatObject(unittest.TestCase):
         np.testing.assert_allclose(np.array(self.obj.matrix_world), np.eye(4), atol=1e-7)
         self.assertEqual((self.obj.type, self.obj.data.type), ("POINTCLOUD", "GAUSSIAN_SPLAT"))
         # The points now hold the mapped Gaussians (what Blender's own Apply leaves unchanged: scale and rotation).
-        assert_mapped(self, blender_splats.read_native_splats(self.obj.data), self.file, matrix)
+        assert_mapped(self, blender_splats.read_blender_splats(self.obj.data), self.file, matrix)
 
     def test_blenders_own_apply_is_reported(self):
         # Blender's Apply Transform moves the centres only (scale and rotation attributes as they were): the export
@@ -161,7 +161,8 @@ class BlenderMadeSplatObject(unittest.TestCase):
         self.assertEqual(len(warnings), 1)
         self.assertIn("Blender's Apply Transform moved only", warnings[0])
         self.assertEqual(bpy.ops.object.raysplats_apply_transform(), {"FINISHED"})
-        self.assertEqual(export_splats.export_gaussian_splats(bpy.context, st.tmp_file("cleared.ply"))[1]["warnings"], [])
+        _, stats, _ = export_splats.export_gaussian_splats(bpy.context, st.tmp_file("cleared.ply"))
+        self.assertEqual(stats["warnings"], [])
 
     def test_a_region_edits_as_polygons_and_merges_back(self):
         place(self.obj)
@@ -169,7 +170,7 @@ class BlenderMadeSplatObject(unittest.TestCase):
         visible = mask & region_editing.visible_gaussians(self.file["opacities"])
         selection = self.obj.data.attributes.new(".selection", "BOOLEAN", "POINT")
         selection.data.foreach_set("value", mask)
-        before = blender_splats.read_native_splats(self.obj.data)
+        before = blender_splats.read_blender_splats(self.obj.data)
         select_only(self.obj)
         self.assertEqual(bpy.ops.object.raysplats_edit_region(), {"FINISHED"})
         region = bpy.context.view_layer.objects.active
@@ -178,7 +179,7 @@ class BlenderMadeSplatObject(unittest.TestCase):
         self.assertEqual(compact_points.gaussian_count(self.obj.data), len(mask) - int(visible.sum()))
         self.assertEqual(bpy.ops.object.raysplats_merge_region(), {"FINISHED"})
         self.assertIs(bpy.context.view_layer.objects.active, self.obj)
-        after = blender_splats.read_native_splats(self.obj.data)
+        after = blender_splats.read_blender_splats(self.obj.data)
         for key in KEYS:  # unedited polygons give back their points bit for bit
             np.testing.assert_array_equal(after[key], before[key], err_msg=key)
 
@@ -230,7 +231,7 @@ class ImportAsBlenderSplats(unittest.TestCase):
                 st.reset_scene()
                 obj = st.import_file(name, representation="POINTS", up_axis="Z", min_opacity=0.0)
                 self.assertEqual((obj.type, obj.data.type), ("POINTCLOUD", "GAUSSIAN_SPLAT"))
-                got = blender_splats.read_native_splats(obj.data)
+                got = blender_splats.read_blender_splats(obj.data)
                 expected = st.native().read_splats(st.data_file(name))
                 for key in KEYS:
                     np.testing.assert_array_equal(got[key], expected[key], err_msg=key)

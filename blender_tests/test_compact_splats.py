@@ -41,10 +41,10 @@ class CompactImport(unittest.TestCase):
 
     def test_every_value_of_the_file_is_kept(self):
         obj = import_points()
-        self.assertTrue(compact_points.is_compact_object(obj))
+        self.assertEqual(splat_object.kind_of(obj), splat_object.POINTS)
         self.assertEqual(len(bpy.data.meshes[obj.data.name].polygons) if obj.type == "MESH" else 0, 0)
         expected = st.native().read_splats(st.data_file(SCENE))
-        got = blender_splats.read_native_splats(obj.data)
+        got = blender_splats.read_blender_splats(obj.data)
         self.assertEqual(len(got["opacities"]), len(expected["opacities"]))  # the invisible ones too
         for key in KEYS:
             np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
@@ -129,7 +129,7 @@ class CompactImport(unittest.TestCase):
             self.assertEqual((representation, needed), ("POINTS", points))
             self.assertIn(f"imported as {import_policy.POINTS_NAME.lower()}", note)
             obj = st.import_file(SCENE)  # the operator's default is AUTO
-        self.assertTrue(compact_points.is_compact_object(obj))
+        self.assertEqual(splat_object.kind_of(obj), splat_object.POINTS)
         with self.assertRaisesRegex(import_policy.NotEnoughMemory, f"import as {import_policy.POINTS_NAME}"):
             import_policy.check_import_memory(Machine(), st.data_file(SCENE), 8, 0, "POLYGONS")
 
@@ -143,7 +143,7 @@ class RegionEditing(unittest.TestCase):
     def setUp(self):
         st.reset_scene()
         self.obj = import_points()
-        self.original = blender_splats.read_native_splats(self.obj.data)
+        self.original = blender_splats.read_blender_splats(self.obj.data)
         self.mask = self.original["positions"][:, 0] > 0.5
         self.visible = self.mask & region_editing.visible_gaussians(self.original["opacities"])
 
@@ -173,7 +173,7 @@ class RegionEditing(unittest.TestCase):
         self.assertIs(self.obj.data, data)
         self.assertEqual(region_editing.open_regions(self.obj), {})
         # Every point back where it was, bit for bit (unedited polygons return their stored values).
-        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
+        self.assert_cloud_equal(blender_splats.read_blender_splats(self.obj.data), self.original)
         self.assertFalse(compact_points.region_marks(self.obj.data).any())
         if hasattr(self.obj.data, "vertices"):
             self.obj.data.vertices.foreach_get("hide", hidden)
@@ -195,7 +195,7 @@ class RegionEditing(unittest.TestCase):
         region.location.x += 2.0  # world +X; the compact object's frame is rotated about X only, so its +X too
         bpy.context.view_layer.update()
         region_editing.merge_region_back(bpy.context, region)
-        cloud = blender_splats.read_native_splats(self.obj.data)
+        cloud = blender_splats.read_blender_splats(self.obj.data)
         self.assertEqual(len(cloud["opacities"]), len(self.mask))  # in place: no point added or removed
         expected = self.original["positions"][self.visible] + np.array([2.0, 0.0, 0.0], dtype=np.float32)
         np.testing.assert_allclose(cloud["positions"][self.visible], expected, atol=1e-5)
@@ -256,9 +256,9 @@ class RegionEditing(unittest.TestCase):
             views.append(real(data))
             return views[-1]
 
-        with mock.patch.object(blender_splats, "new_native_splat_data",
+        with mock.patch.object(blender_splats, "new_blender_splat_data",
                                side_effect=AssertionError("rebuilt")), \
-                mock.patch.object(blender_splats, "read_native_splats",
+                mock.patch.object(blender_splats, "read_blender_splats",
                                   side_effect=AssertionError("read whole")), \
                 mock.patch.object(region_editing, "_PointViews", side_effect=recording):
             region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, small)
@@ -270,7 +270,7 @@ class RegionEditing(unittest.TestCase):
         # The values were read and written in Blender's arrays in place, not as whole copies.
         self.assertTrue(views)
         self.assertEqual([view.copies for view in views], [[]] * len(views))
-        self.assert_cloud_equal(blender_splats.read_native_splats(data), self.original)
+        self.assert_cloud_equal(blender_splats.read_blender_splats(data), self.original)
 
     def test_nothing_selected_is_a_clear_error_and_changes_nothing(self):
         with self.assertRaisesRegex(ValueError, "no splats selected"):
@@ -286,7 +286,7 @@ class RegionEditing(unittest.TestCase):
                          int((region_editing.visible_gaussians(self.original["opacities"]) & ~self.mask).sum()))
         region_editing.merge_region_back(bpy.context, other)
         region_editing.merge_region_back(bpy.context, region)
-        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
+        self.assert_cloud_equal(blender_splats.read_blender_splats(self.obj.data), self.original)
 
     def test_a_deleted_region_is_listed_and_restored(self):
         region, _ = region_editing.edit_region_as_polygons(bpy.context, self.obj, self.mask)
@@ -310,7 +310,7 @@ class RegionEditing(unittest.TestCase):
         self.assertEqual(compact_points.gaussian_count(obj.data), int((~self.visible).sum()))
         self.assertEqual(region_editing.orphaned_regions(obj), [])
         region_editing.merge_region_back(bpy.context, region)
-        cloud = blender_splats.read_native_splats(obj.data)
+        cloud = blender_splats.read_blender_splats(obj.data)
         self.assertEqual(len(cloud["opacities"]), len(self.mask))
         self.assertEqual(compact_points.gaussian_count(obj.data), len(self.mask))
         for key in KEYS:
@@ -334,7 +334,7 @@ class RegionEditing(unittest.TestCase):
         self.assertEqual(bpy.ops.object.raysplats_merge_region(), {"FINISHED"})
         self.assertIs(bpy.context.view_layer.objects.active, self.obj)
         self.assertEqual(compact_points.gaussian_count(self.obj.data), len(self.mask))
-        self.assert_cloud_equal(blender_splats.read_native_splats(self.obj.data), self.original)
+        self.assert_cloud_equal(blender_splats.read_blender_splats(self.obj.data), self.original)
 
 
 class Rendering(unittest.TestCase):

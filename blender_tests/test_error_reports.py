@@ -63,7 +63,8 @@ class Operators(ReportTest):
     def test_import_failure_after_the_mesh_is_filled_leaves_nothing_behind(self):
         # Before: a failure after fill_mesh (the material, the object, linking) left an orphan mesh and object.
         from raysplats.io import import_policy
-        for target, name in ((creation.falloff_material, "gaussian_material"), (import_splats.axes, "object_rotation_euler")):
+        for target, name in ((creation.falloff_material, "gaussian_material"),
+                             (import_splats.axes, "object_rotation_euler")):
             with self.subTest(failing=name):
                 st.reset_scene()
                 meshes, objects = len(bpy.data.meshes), len(bpy.data.objects)

@@ -1,4 +1,5 @@
-# Object > Convert between our Gaussian objects and Blender 5.3's own Gaussian splat point clouds (objects/blender_splats.py).
+# Object > Convert between our Gaussian objects and Blender 5.3's own Gaussian splat point clouds
+# (tools/convert_splats.py, in the layout of objects/blender_splats.py).
 # These tests check the attribute layout 5.3's importers write (scale linear, rotation w x y z, radiance:base = SH DC
 # + opacity, radiance:sh_k = coefficient k + 1) on what each Blender holds: a mesh whose points carry those attributes
 # below 5.3, a Gaussian-splat point cloud on 5.3 (test_blender_splats.py compares with 5.3's own importer).
@@ -73,7 +74,7 @@ class HandMadeSplatCloud(unittest.TestCase):
         self.splats.scale = (2.0, 2.0, 2.0)
 
     def test_converts_to_a_gaussian_object_with_the_same_gaussians(self):
-        self.assertTrue(blender_splats.is_native_splat_object(self.splats))
+        self.assertTrue(blender_splats.is_blender_splat_object(self.splats))
         select_only(self.splats)
         bpy.context.view_layer.update()  # matrix_world follows location/rotation/scale on evaluation
         matrix = np.array(self.splats.matrix_world)
@@ -97,7 +98,7 @@ class HandMadeSplatCloud(unittest.TestCase):
         plain = bpy.data.objects.new("plain", bpy.data.meshes.new("plain"))
         bpy.context.scene.collection.objects.link(plain)
         plain.data.vertices.add(3)
-        self.assertFalse(blender_splats.is_native_splat_object(plain))
+        self.assertFalse(blender_splats.is_blender_splat_object(plain))
         select_only(plain)
         self.assertFalse(bpy.ops.object.raysplats_from_native_splats.poll())
 
@@ -119,7 +120,7 @@ class RoundTrip(unittest.TestCase):
         select_only(obj)
         self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
         splats = bpy.context.active_object
-        self.assertTrue(blender_splats.is_native_splat_object(splats))
+        self.assertTrue(blender_splats.is_blender_splat_object(splats))
         data = splats.data
         self.assertEqual(compat.point_count(data), count)
         # The layout Blender 5.3 renders: names and types.

@@ -441,7 +441,8 @@ class Dialogs(unittest.TestCase):
                          "/a/scene.v2.ply")
         # A two-dot splat extension is replaced whole, both ways (by the core's endings); a read-only one is kept.
         self.assertEqual(format_table.with_splat_extension("/a/scene.compressed.ply", ".spz"), "/a/scene.spz")
-        self.assertEqual(format_table.with_splat_extension("/a/scene.ply", ".compressed.ply"), "/a/scene.compressed.ply")
+        self.assertEqual(format_table.with_splat_extension("/a/scene.ply", ".compressed.ply"),
+                         "/a/scene.compressed.ply")
         self.assertEqual(format_table.with_splat_extension("/a/Scene.SPZ", ".ply"), "/a/Scene.ply")
         self.assertEqual(format_table.with_splat_extension("/a/scene.sog", ".ply"), "/a/scene.sog.ply")
         self.assertEqual(format_table.splat_format_of("/a/S.Compressed.PLY")["name"], "compressed_ply")

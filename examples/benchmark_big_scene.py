@@ -107,7 +107,7 @@ scene.raysplats.samples = 1
 camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
 scene.collection.objects.link(camera)
 # As examples/benchmark_engine.py: inside the first showroom (its median splat), looking along it.
-points = compact_points.object_cloud(obj)["positions"] if compact_points.is_compact_object(obj) else None
+points = compact_points.object_cloud(obj)["positions"] if splat_object.kind_of(obj) == splat_object.POINTS else None
 if points is not None:
     median = np.median(points[: count // (args.tiles ** 2)], axis=0)
     del points
@@ -123,7 +123,7 @@ if not args.no_render:
     bpy.ops.render.render(write_still=True)
     stage("F12, 1920 x 1080, 1 sample", time.perf_counter() - t)
 
-if compact_points.is_compact_object(obj):
+if splat_object.kind_of(obj) == splat_object.POINTS:
     positions = compact_points.object_cloud(obj)["positions"]
     # The region: the Gaussians nearest the first tile's centre, as a crop would give them.
     distance = np.linalg.norm(positions - positions[: len(positions) // (args.tiles ** 2)].mean(axis=0), axis=1)

@@ -34,7 +34,8 @@ def build_shot(blend_path, splat_path=None, frames=(1, 6), width=64, height=36, 
         obj = bpy.context.view_layer.objects.active
     else:
         from raysplats.io import import_splats
-        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE), **import_options)
+        obj, _, _ = import_splats.import_gaussian_splats(bpy.context, splat_path or st.data_file(SCENE),
+                                                         **import_options)
     meshes = [o for o in scene.objects if o.type in {"MESH", "POINTCLOUD"}]
     corners = [o.matrix_world @ Vector(corner) for o in meshes for corner in o.bound_box]
     centre = sum(corners, Vector()) / len(corners)

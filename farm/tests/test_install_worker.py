@@ -126,7 +126,8 @@ class SourceTreeInstall(unittest.TestCase):
         self.assertIn("check_worker: RAYSPLATS works in Blender 3.", output)
         link = os.path.join(user, "scripts", "addons", "raysplats")
         self.assertTrue(os.path.islink(link), link)
-        self.assertEqual(os.path.realpath(link), os.path.join(os.path.dirname(os.path.dirname(HERE)), "addon", "raysplats"))
+        repository = os.path.dirname(os.path.dirname(HERE))
+        self.assertEqual(os.path.realpath(link), os.path.join(repository, "addon", "raysplats"))
 
 
 def main():

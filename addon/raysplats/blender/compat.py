@@ -98,8 +98,8 @@ MESH_SELECTION_ATTRIBUTES = (".select_vert", ".select_edge", ".select_poly")
 # --- Blender's own Gaussian splats (5.3) -----------------------------------------------------------------------------
 
 # Blender 5.3 gave PointCloud a type, POINTS ("Points") or GAUSSIAN_SPLAT ("3D Gaussian Splat"), and renders the
-# latter as splats from the point attributes its PLY/SPZ importers write (objects/blender_splats.py has the layout). 5.2 and
-# older have no PointCloud.type. The item is found by its name, so that a renamed identifier is still found: None
+# latter as splats from the point attributes its PLY/SPZ importers write (objects/blender_splats.py has the layout). 5.2
+# and older have no PointCloud.type. The item is found by its name, so that a renamed identifier is still found: None
 # where the feature is missing.
 def _native_gaussian_splat_type():
     if not hasattr(bpy.types, "PointCloud") or "type" not in bpy.types.PointCloud.bl_rna.properties:

@@ -1,6 +1,6 @@
-# The one reader of Blender materials (docs/design.md §6): what the renderer (engine/material_table.py) and every exporter
-# (io/export_mesh.py) take a material to be. It follows the active Material Output's Surface link to the shader that
-# is really connected: the Principled BSDF and the simple BSDF nodes, with a base-colour image texture when Base
+# The one reader of Blender materials (docs/design.md §6): what the renderer (engine/material_table.py) and every
+# exporter (io/export_mesh.py) take a material to be. It follows the active Material Output's Surface link to the shader
+# that is really connected: the Principled BSDF and the simple BSDF nodes, with a base-colour image texture when Base
 # Color (or a Diffuse BSDF's Color) is linked from an Image Texture node. Nodes not connected to the output do not
 # count, so an Emission-driven material is read as emission whatever other shaders sit in its tree.
 #

@@ -33,7 +33,8 @@ def objects_in_scope(context, limit_to=DEFAULT_LIMIT_TO):
         chosen = set(selected)
         for obj in selected:
             if obj.type == "EMPTY":
-                selected += [child for child in obj.children if child not in chosen and polygon_mesh.is_gaussian_object(child)]
+                selected += [child for child in obj.children
+                             if child not in chosen and polygon_mesh.is_gaussian_object(child)]
                 chosen.update(obj.children)
         return selected
     if limit_to == "VISIBLE":

@@ -10,7 +10,8 @@ from bpy_extras.io_utils import ExportHelper
 from .. import errors, native
 from ..objects import axes, splat_object
 from . import export_scope
-from .format_table import open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text, with_splat_extension
+from .format_table import (open_splat_file_browser, splat_extensions, splat_format_of, splat_formats, splat_menu_text,
+                           with_splat_extension)
 from ..progress import StageProgress
 
 

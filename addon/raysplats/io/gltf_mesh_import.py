@@ -1,5 +1,5 @@
-# The meshes of a glTF file whose splats the splat import reads (io/import_splats.py): they go through Blender's own glTF
-# importer, and the point-cloud objects it makes of the KHR_gaussian_splatting primitives are removed again (the
+# The meshes of a glTF file whose splats the splat import reads (io/import_splats.py): they go through Blender's own
+# glTF importer, and the point-cloud objects it makes of the KHR_gaussian_splatting primitives are removed again (the
 # splats are the Gaussian object already; Blender's importer shows them as bare points).
 import os
 import re

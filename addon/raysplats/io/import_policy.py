@@ -14,8 +14,8 @@ def memory_size_text(n):
     return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.0f} MB"
 
 
-# Import representations (objects/compact_points.py): AUTO picks polygons for scenes they suit, compact points beyond. Where
-# compact points are Blender's own Gaussian-splat point cloud (5.3 on), they are called by its name.
+# Import representations (objects/compact_points.py): AUTO picks polygons for scenes they suit, compact points beyond.
+# Where compact points are Blender's own Gaussian-splat point cloud (5.3 on), they are called by its name.
 POINTS_NAME = "Blender Gaussian Splats" if compat.SPLATS_AS_POINT_CLOUD else "Compact Points"
 REPRESENTATION_ITEMS = (
     ("AUTO", "Automatic", "Editable polygons up to 3 million Gaussians when the memory allows them, compact points "

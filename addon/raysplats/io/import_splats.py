@@ -20,8 +20,8 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0
                            min_opacity=0.0, max_count=0, gltf_meshes=True, representation="POLYGONS",
                            objects="AUTO", piece_size=0):
     """Imports a splat file as a new Gaussian object in the active collection: polygons, or compact points
-    (objects/compact_points.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a glTF
-    file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
+    (objects/compact_points.py) when `representation` says so or (AUTO) when the scene is too big for polygons; for a
+    glTF file with `gltf_meshes`, also its other meshes through Blender's glTF importer. `up_axis`: an axis, "AUTO" (the
     format's convention) or "DETECT" (axes.resolve_import_up_axis: the scene's own up where its data shows it).
     `vertices_per_polygon`: K, or 0 for Auto (auto_vertices_per_polygon). `objects`, `piece_size`: one object or
     spatial pieces (gaussians_per_piece); a split scene is an empty with the pieces as its children, and the object
@@ -68,11 +68,11 @@ def import_gaussian_splats(context, filepath, vertices_per_polygon=0, radius=3.0
                 cloud = holder.pop()
                 per_piece = gaussians_per_piece(objects, len(cloud["opacities"]), vertices_per_polygon, piece_size)
                 if per_piece < len(cloud["opacities"]):
-                    obj, warnings = creation.add_gaussian_pieces(context, name, cloud, per_piece, vertices_per_polygon, radius,
-                                                        resolved, filepath, progress)
+                    obj, warnings = creation.add_gaussian_pieces(context, name, cloud, per_piece, vertices_per_polygon,
+                                                                 radius, resolved, filepath, progress)
                 else:
                     obj, warnings = creation.add_gaussian_object(context, name, cloud, vertices_per_polygon, radius,
-                                                        resolved, filepath, progress)
+                                                                 resolved, filepath, progress)
                 del cloud
             obj.rotation_euler = axes.object_rotation_euler(resolved)
             if gltf_meshes and splat_format is not None and splat_format["name"] == "gltf":

@@ -68,7 +68,7 @@ def _write(data, name, data_type, values):
                                np.ascontiguousarray(values, dtype=np.float32).ravel())
 
 
-def is_native_splat_object(obj):
+def is_blender_splat_object(obj):
     """True for a point cloud (or mesh) carrying Blender's splat attributes, other than our own Gaussian objects."""
     if obj is None or obj.type not in {"POINTCLOUD", "MESH"} or polygon_mesh.is_gaussian_object(obj):
         return False
@@ -78,7 +78,7 @@ def is_native_splat_object(obj):
             and point_attribute(data, (ATTR_RADIANCE_BASE,), (4,)) is not None)
 
 
-def read_native_splats(data):
+def read_blender_splats(data):
     """The Gaussians of a splat point cloud (or mesh) datablock in its object space, as the core's cloud dict."""
     count = compat.point_count(data)
     if count == 0:
@@ -111,7 +111,7 @@ def read_native_splats(data):
             "opacities": np.ascontiguousarray(base[:, 3]), "sh": sh, "sh_degree": degree}
 
 
-def new_native_splat_data(name, gaussians):
+def new_blender_splat_data(name, gaussians):
     """A datablock with the splat layout holding `gaussians` (the core's dict): a Gaussian-splat PointCloud where the
     running Blender has one, else a mesh whose vertices carry the attributes."""
     count = len(gaussians["opacities"])
@@ -144,9 +144,9 @@ def _radiance_base(gaussians):
     return base
 
 
-def write_native_splats(data, gaussians):
+def write_blender_splats(data, gaussians):
     """Overwrites every point of a splat datablock with `gaussians` (the core's dict, one Gaussian per point, SH of
-    the datablock's degree as read_native_splats gives it), in the attributes it already has."""
+    the datablock's degree as read_blender_splats gives it), in the attributes it already has."""
     count = compat.point_count(data)
     if len(gaussians["opacities"]) != count:
         raise errors.InternalError(f"'{data.name}': {len(gaussians['opacities'])} Gaussians for {count} points")

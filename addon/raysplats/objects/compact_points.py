@@ -23,11 +23,6 @@ REMOVED_MARK = -1
 CLOUD_KEYS = ("positions", "rotations", "scales", "opacities", "sh")
 
 
-def is_compact_object(obj):
-    """A splat object of points (ours, or Blender 5.3's own splats)."""
-    return blender_splats.is_native_splat_object(obj)
-
-
 def region_marks(data):
     """The REGION_MARK of each point (int32, a copy), or None when no region was ever taken from `data`."""
     attribute = data.attributes.get(REGION_MARK)
@@ -62,7 +57,7 @@ def object_cloud(obj, data=None):
     shown = shown_points(data)
     if shown is not None and not shown.any():
         return None
-    cloud = blender_splats.read_native_splats(data)
+    cloud = blender_splats.read_blender_splats(data)
     if shown is not None:
         for key in CLOUD_KEYS:
             cloud[key] = np.ascontiguousarray(cloud[key][shown])
@@ -85,8 +80,8 @@ def transformed_cloud(cloud, matrix):
 
 def bake_matrix_into_points(obj, matrix):
     """Rewrites every point of compact object `obj` as its Gaussian mapped by `matrix` (4x4, any affine map: centre,
-    covariance A Σ Aᵀ as rotation and scales, SH turned by the rotation; transformed_cloud), the points out in a region
-    too, so that Merge Back (which maps a region by the objects' matrices) still lands them where they are seen. The
+    covariance A Σ Aᵀ as rotation and scales, SH turned by the rotation; transformed_cloud), the points out in a
+    region too, so that Merge Back (which maps a region by the objects' matrices) still lands them where they are seen. The
     object's transform is left as it is. Returns the number of Gaussians it shows."""
     if obj.mode == "EDIT":
         raise ValueError(f"'{obj.name}' is in Edit Mode; apply transforms in Object Mode")
@@ -101,8 +96,8 @@ def bake_matrix_into_points(obj, matrix):
         raise ValueError(f"'{obj.name}' has SH of degree 4 ({first_unsupported}, ...), which RaySplats cannot turn; "
                          "its transform is not applied")
     if compat.point_count(data):
-        cloud = blender_splats.read_native_splats(data)
-        blender_splats.write_native_splats(data, transformed_cloud(cloud, matrix))
+        cloud = blender_splats.read_blender_splats(data)
+        blender_splats.write_blender_splats(data, transformed_cloud(cloud, matrix))
     return gaussian_count(data)
 
 

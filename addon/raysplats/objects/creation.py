@@ -157,7 +157,7 @@ def remove_gaussian_object(obj):
 def add_compact_object(context, name, cloud, up_axis, source_file=""):
     """A new compact splat object holding `cloud` (the core's dict) in object space, in the active collection,
     selected and active; its transform is left as identity for the caller. A failure leaves nothing behind."""
-    data = blender_splats.new_native_splat_data(name, cloud)
+    data = blender_splats.new_blender_splat_data(name, cloud)
     obj = None
     try:
         obj = bpy.data.objects.new(name, data)

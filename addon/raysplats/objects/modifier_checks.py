@@ -42,9 +42,9 @@ def corner_only_apply_warnings(obj):
 
 
 def compact_warnings(obj, for_render):
-    """One message per enabled modifier of a compact splat object (objects/compact_points.py): a modifier moves its points,
-    the Gaussians' centres, and leaves their shapes and orientations as they are in the object, which a bend, a
-    non-uniform scale or a shape key does not mean."""
+    """One message per enabled modifier of a compact splat object (objects/compact_points.py): a modifier moves its
+    points, the Gaussians' centres, and leaves their shapes and orientations as they are in the object, which a bend,
+    a non-uniform scale or a shape key does not mean."""
     return [f"'{obj.name}': modifier '{modifier.name}' moves only the centres of its compact splats; their shapes "
             "and orientations stay as they are (to deform them, edit the region as polygons: Edit Selected as "
             "Polygons)"

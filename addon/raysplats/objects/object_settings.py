@@ -26,8 +26,8 @@ class RaySplatsObjectSettings(bpy.types.PropertyGroup):
     up_axis: EnumProperty(name="File Up Axis", items=UP_AXIS_ITEMS, default="-Y",
                           description="Up direction of the source file, undone again on export")
     # Colour adjustments (color_adjustment.py): applied to the SH wherever Gaussians are rendered or exported, and to
-    # the colour attribute the viewport shows (tools/handlers.py and the message bus: no update= callbacks here, which make
-    # Blender 4.2 as a Python module crash at exit); the stored SH stay as imported.
+    # the colour attribute the viewport shows (tools/handlers.py and the message bus: no update= callbacks here, which
+    # make Blender 4.2 as a Python module crash at exit); the stored SH stay as imported.
     exposure: FloatProperty(name="Exposure", description="Brightness in stops (each +1 doubles the colours)",
                             default=0.0, soft_min=-4.0, soft_max=4.0)
     brightness: FloatProperty(name="Brightness", description="Added to the display colours", default=0.0,

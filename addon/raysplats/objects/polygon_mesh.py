@@ -5,8 +5,10 @@ import numpy as np
 
 from .. import native
 from . import color_adjustment
-from ..blender.compat import FACE_CORNER_COUNT_IS_WRITABLE, MESH_ARRAY_ATTRIBUTES, MESH_INDEX_DTYPE, MESH_SELECTION_ATTRIBUTES, UV_MAPS_ARE_ATTRIBUTES
-from ..blender.mesh_read import ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribute, read_corner_vertices, read_face_corners, read_uv_map, read_vertex_positions, write_bytes_in_place
+from ..blender.compat import (FACE_CORNER_COUNT_IS_WRITABLE, MESH_ARRAY_ATTRIBUTES, MESH_INDEX_DTYPE,
+                              MESH_SELECTION_ATTRIBUTES, UV_MAPS_ARE_ATTRIBUTES)
+from ..blender.mesh_read import (ATTRIBUTE_VALUE_PROPERTY, flat_buffer, read_attribute, read_corner_vertices,
+                                 read_face_corners, read_uv_map, read_vertex_positions, write_bytes_in_place)
 
 # Face-domain attributes of a Gaussian mesh. SH coefficient k (k = 0 is the DC term) lives in "gs_sh_<k>";
 # coefficients k >= 1 are in the face's local frame.

@@ -20,7 +20,7 @@ def kind_of(obj):
     """POLYGONS, POINTS, or None for an object that holds no Gaussians (or None)."""
     if polygon_mesh.is_gaussian_object(obj):
         return POLYGONS
-    if blender_splats.is_native_splat_object(obj):
+    if blender_splats.is_blender_splat_object(obj):
         return POINTS
     return None
 

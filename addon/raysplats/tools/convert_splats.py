@@ -10,7 +10,7 @@ from ..blender import compat
 from ..objects import polygon_mesh, splat_object
 from ..objects.compact_points import object_cloud
 from ..objects.creation import add_gaussian_object
-from ..objects.blender_splats import is_native_splat_object, new_native_splat_data
+from ..objects.blender_splats import is_blender_splat_object, new_blender_splat_data
 
 
 
@@ -26,18 +26,18 @@ def _replace_in_scene(context, old, new, keep_original):
         bpy.data.objects.remove(old)
 
 
-def convert_to_native_splats(context, obj, keep_original=False):
+def convert_to_blender_splats(context, obj, keep_original=False):
     """Blender splat object made from our Gaussian object `obj` (evaluated: modifiers and edits applied), in the same
     place (object transform kept, not baked). Returns the new object."""
     depsgraph = context.evaluated_depsgraph_get()
     gaussians = polygon_mesh.recover_object_gaussians(native.core(), obj, depsgraph, np.eye(4))
-    new = bpy.data.objects.new(obj.name + " splats", new_native_splat_data(obj.name, gaussians))
+    new = bpy.data.objects.new(obj.name + " splats", new_blender_splat_data(obj.name, gaussians))
     splat_object.set_up_axis(new, splat_object.up_axis_of(obj))
     _replace_in_scene(context, obj, new, keep_original)
     return new
 
 
-def convert_from_native_splats(context, obj, vertices_per_polygon=8, radius=3.0, keep_original=False):
+def convert_from_blender_splats(context, obj, vertices_per_polygon=8, radius=3.0, keep_original=False):
     """Our Gaussian object made from a Blender splat object `obj` (evaluated: geometry nodes applied), in the same
     place, exporting as `obj` does (splat_object.up_axis_of). Returns the new object."""
     data = obj.evaluated_get(context.evaluated_depsgraph_get()).data
@@ -71,7 +71,7 @@ class OBJECT_OT_raysplats_to_native_splats(bpy.types.Operator):
     def execute(self, context):
         objects = [obj for obj in context.selected_objects if polygon_mesh.is_gaussian_object(obj)]
         for obj in objects:
-            convert_to_native_splats(context, obj, self.keep_original)
+            convert_to_blender_splats(context, obj, self.keep_original)
         if not compat.HAS_NATIVE_GAUSSIAN_SPLATS:
             self.report({"WARNING"}, "This Blender has no Gaussian splat point clouds (5.3+): the splat attributes "
                                      "were written on mesh vertices")
@@ -95,13 +95,13 @@ class OBJECT_OT_raysplats_from_native_splats(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return any(is_native_splat_object(obj) for obj in context.selected_objects)
+        return any(is_blender_splat_object(obj) for obj in context.selected_objects)
 
     @errors.reports_failures("Conversion failed: ")
     def execute(self, context):
-        objects = [obj for obj in context.selected_objects if is_native_splat_object(obj)]
+        objects = [obj for obj in context.selected_objects if is_blender_splat_object(obj)]
         for obj in objects:
-            convert_from_native_splats(context, obj, self.vertices_per_polygon, self.radius, self.keep_original)
+            convert_from_blender_splats(context, obj, self.vertices_per_polygon, self.radius, self.keep_original)
         self.report({"INFO"}, f"Converted {len(objects)} splat object(s) to RaySplats Gaussians")
         return {"FINISHED"}
 

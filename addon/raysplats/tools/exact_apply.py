@@ -70,7 +70,8 @@ class OBJECT_OT_raysplats_apply_transform(bpy.types.Operator):
 
     @errors.reports_failures("Apply transform failed: ")
     def execute(self, context):
-        objects = [obj for obj in (context.selected_objects or [context.active_object]) if splat_object.is_splat_object(obj)]
+        objects = [obj for obj in (context.selected_objects or [context.active_object])
+                   if splat_object.is_splat_object(obj)]
         for obj in objects:
             count = apply_transform_exactly(obj, self.location, self.rotation, self.scale)
             self.report({"INFO"}, f"'{obj.name}': transform applied to {count:,} Gaussians")

@@ -18,7 +18,7 @@ import numpy as np
 from .. import errors, native
 from ..blender import compat
 from ..objects import blender_splats, polygon_mesh, splat_object
-from ..objects.compact_points import REGION_MARK, REMOVED_MARK, is_compact_object, region_marks, selected_points
+from ..objects.compact_points import REGION_MARK, REMOVED_MARK, region_marks, selected_points
 from ..objects.creation import add_gaussian_object, remove_gaussian_object
 
 
@@ -73,7 +73,8 @@ class _PointViews:
             if attribute is None:
                 break
             self.sh_rest.append(self._attribute_view(attribute))
-        self.sh_degree = max(d for d in range(blender_splats.MAX_SH_DEGREE + 1) if (d + 1) ** 2 - 1 <= len(self.sh_rest))
+        self.sh_degree = max(d for d in range(blender_splats.MAX_SH_DEGREE + 1)
+                             if (d + 1) ** 2 - 1 <= len(self.sh_rest))
         del self.sh_rest[(self.sh_degree + 1) ** 2 - 1:]
         self.marks = self._attribute_view(data.attributes[REGION_MARK])
 
@@ -283,7 +284,7 @@ def _copy_placement(source, target):
 def region_target(region):
     """The compact object a region's polygon object was taken from, or None."""
     target = bpy.data.objects.get(region.get(REGION_OF_PROPERTY, ""))
-    return target if is_compact_object(target) else None
+    return target if splat_object.kind_of(target) == splat_object.POINTS else None
 
 
 def _region_slots(region, depsgraph):
@@ -438,7 +439,7 @@ class OBJECT_OT_raysplats_edit_region(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return is_compact_object(context.active_object)
+        return splat_object.kind_of(context.active_object) == splat_object.POINTS
 
     @errors.reports_failures("Edit region failed: ")
     def execute(self, context):
@@ -462,7 +463,8 @@ class OBJECT_OT_raysplats_merge_region(bpy.types.Operator):
     @staticmethod
     def _target(context):
         region = context.active_object
-        others = [obj for obj in context.selected_objects if obj is not region and is_compact_object(obj)]
+        others = [obj for obj in context.selected_objects
+                  if obj is not region and splat_object.kind_of(obj) == splat_object.POINTS]
         return others[0] if len(others) == 1 else region_target(region)
 
     @classmethod
@@ -490,7 +492,8 @@ class OBJECT_OT_raysplats_restore_regions(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return is_compact_object(context.active_object) and bool(orphaned_regions(context.active_object))
+        obj = context.active_object
+        return splat_object.kind_of(obj) == splat_object.POINTS and bool(orphaned_regions(obj))
 
     @errors.reports_failures("Restore failed: ")
     def execute(self, context):

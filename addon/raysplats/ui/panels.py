@@ -178,8 +178,9 @@ class VIEW3D_MT_raysplats_select(bpy.types.Menu):
         for cls in (select_splats.MESH_OT_raysplats_select_opacity, select_splats.MESH_OT_raysplats_select_size,
                     select_splats.MESH_OT_raysplats_select_color, select_splats.MESH_OT_raysplats_select_floaters):
             layout.operator(cls.bl_idname)
-        layout.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Inside Crop Box").inside = True
-        layout.operator(select_splats.MESH_OT_raysplats_select_crop_box.bl_idname, text="Outside Crop Box").inside = False
+        crop_box = select_splats.MESH_OT_raysplats_select_crop_box.bl_idname
+        layout.operator(crop_box, text="Inside Crop Box").inside = True
+        layout.operator(crop_box, text="Outside Crop Box").inside = False
 
 
 class VIEW3D_MT_raysplats_mesh(bpy.types.Menu):
