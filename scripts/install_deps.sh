@@ -14,6 +14,9 @@ PACKAGES=(
   patchelf binutils
   # clang and libFuzzer: the fuzz targets (scripts/fuzz.sh, ctest fuzz.smoke)
   clang libclang-rt-14-dev
+  # The Windows build and its tests (scripts/windows/): MinGW-w64's GCC 12 with POSIX threads, Wine to run Windows'
+  # Python and Blender, Maven to fetch the Windows CPython builds, curl and unzip for Debian's source tarballs.
+  g++-mingw-w64-x86-64-posix wine64 maven curl unzip
 )
 
 missing=()

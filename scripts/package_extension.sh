@@ -60,36 +60,9 @@ for object in "$stage"/*.so*; do
 done
 
 zip=$root/dist/raysplats-$version-linux_x64.zip
-rm -f "$zip"
-# Files at the zip's root, as Blender's own `extension build` writes them; sorted, with fixed times, so the
-# same build gives the same zip.
-/usr/bin/python3 - "$stage" "$zip" <<'EOF'
-import os, sys, zipfile
-stage, zip_path = sys.argv[1], sys.argv[2]
-with zipfile.ZipFile(zip_path + ".tmp", "w", zipfile.ZIP_DEFLATED, compresslevel=9) as archive:
-    for folder, folders, files in os.walk(stage):
-        folders.sort()
-        for name in sorted(files):
-            path = os.path.join(folder, name)
-            info = zipfile.ZipInfo(os.path.relpath(path, stage), date_time=(1980, 1, 1, 0, 0, 0))
-            info.external_attr = (0o755 if name.endswith(".so") or ".so." in name else 0o644) << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            with open(path, "rb") as source:
-                archive.writestr(info, source.read())
-os.replace(zip_path + ".tmp", zip_path)
-EOF
+"$root/scripts/write_extension_zip.py" "$stage" "$zip" linux-x64
 
 "$root/scripts/check_extension_libraries.py" "$zip" || die "$zip needs libraries it does not carry (see above)"
 
-# Blender's validator (`blender --command extension validate`) is the bl_pkg add-on's blender_ext.py, which runs
-# with any Python 3.11; use the newest bpy venv there is.
-validator=$(ls -d "$HOME"/.cache/raysplats/bpy*-venv/lib/python3*/site-packages/bpy/[0-9]*/scripts/addons_core/bl_pkg/cli/blender_ext.py \
-            2>/dev/null | sort -V | tail -n 1 || true)
-if [[ -n $validator ]]; then
-  venv_python=${validator%%/lib/python3*}/bin/python
-  "$venv_python" "$validator" validate "$zip" || die "Blender's extension validator rejects $zip (above)"
-  echo "package_extension: Blender's validator ($(basename "$(dirname "$(dirname "$(dirname "$(dirname "$(dirname "$validator")")")")")")) accepts the zip"
-else
-  echo "package_extension: no bpy venv (scripts/setup_bpy.sh 5.0): Blender's validator not run" >&2
-fi
+"$root/scripts/validate_extension_zip.sh" "$zip" || die "Blender's extension validator rejects $zip (above)"
 echo "package_extension: $zip ($(du -h "$zip" | cut -f1))"

@@ -1,8 +1,14 @@
 # Installs the extension zip the way a user does, into a fresh user folder, in an official Blender build (the PyPI
-# bpy module), and uses it: enable, import a real scene, render it with RAYSPLATS, export it. Nothing of the source
-# tree is on sys.path, so the add-on and its native module can only come from the zip.
+# bpy module), and uses it: enable, import a real scene, edit it (a transform applied exactly), render it with
+# RAYSPLATS beside a mesh under a sun (shadows), export it to .spz and .glb. Nothing of the source tree is on
+# sys.path, so the add-on and its native module can only come from the zip. The same file runs in Blender for Linux
+# and, under Wine, in Blender for Windows (scripts/windows/test_windows.sh); with --out-dir it leaves the exports and
+# the render's pixels there, for scripts/windows/compare_platforms.py.
 #   python test_extension_install.py --zip dist/raysplats-0.1.0-linux_x64.zip --data-dir ../shared/data --tmp-dir DIR
+#                                    [--out-dir DIR]
 import argparse
+import ctypes
+import importlib.machinery
 import os
 import shutil
 import sys
@@ -18,7 +24,27 @@ def parse_arguments():
     parser.add_argument("--zip", required=True)
     parser.add_argument("--data-dir", required=True)
     parser.add_argument("--tmp-dir", required=True)
+    parser.add_argument("--out-dir", help="where the exports and the render's pixels are left for comparison")
     return parser.parse_args()
+
+
+def loaded_libraries():
+    """The paths of every shared library this process has loaded."""
+    if sys.platform == "win32":
+        psapi, kernel32 = ctypes.WinDLL("psapi"), ctypes.WinDLL("kernel32")
+        kernel32.GetCurrentProcess.restype = ctypes.c_void_p
+        process = ctypes.c_void_p(kernel32.GetCurrentProcess())
+        handles = (ctypes.c_void_p * 4096)()
+        needed = ctypes.c_uint32()
+        assert psapi.EnumProcessModules(process, handles, ctypes.sizeof(handles), ctypes.byref(needed))
+        paths = []
+        for handle in handles[:needed.value // ctypes.sizeof(ctypes.c_void_p)]:
+            name = ctypes.create_unicode_buffer(1024)
+            psapi.GetModuleFileNameExW(process, ctypes.c_void_p(handle), name, 1024)
+            paths.append(name.value)
+        return paths
+    with open("/proc/self/maps") as maps:
+        return sorted({line.split()[-1] for line in maps if line.split()[-1].startswith("/")})
 
 
 class ExtensionInstall(unittest.TestCase):
@@ -52,15 +78,21 @@ class ExtensionInstall(unittest.TestCase):
         core = sys.modules[PACKAGE + ".native"].core()
         path = os.path.realpath(core.__file__)
         self.assertTrue(path.startswith(self.user_dir), path)
-        tag = f"cpython-{sys.version_info.major}{sys.version_info.minor}"
-        self.assertIn(tag, os.path.basename(path))
-        # Its libraries come from the zip: the loaded Embree 3 is the one beside the module.
-        with open("/proc/self/maps") as maps:
-            embree = {line.split()[-1] for line in maps if "libembree3" in line}
-        self.assertEqual(embree, {os.path.join(os.path.dirname(path), "libembree3.so.3")})
+        self.assertEqual(os.path.basename(path), "_native" + importlib.machinery.EXTENSION_SUFFIXES[0])
+        folder = os.path.normcase(os.path.dirname(path))
+        ours = sorted(library for library in loaded_libraries()
+                      if os.path.normcase(os.path.dirname(os.path.realpath(library))) == folder)
+        if sys.platform == "win32":
+            # Everything is linked into the module: no DLL of ours, so none that Blender's own could stand in for.
+            self.assertEqual([os.path.basename(library) for library in ours], [os.path.basename(path)])
+        else:
+            # Its libraries come from the zip: the loaded Embree 3 is the one beside the module.
+            embree = {library for library in loaded_libraries() if "libembree3" in library}
+            self.assertEqual(embree, {os.path.join(os.path.dirname(path), "libembree3.so.3")})
 
-    def test_import_render_export_a_real_scene(self):
+    def test_import_edit_render_export_a_real_scene(self):
         bpy = self.bpy
+        import numpy as np
         # (Not read_factory_settings: that would also drop the user preferences, and with them the installed add-on.)
         for other in list(bpy.data.objects):
             bpy.data.objects.remove(other)
@@ -69,33 +101,59 @@ class ExtensionInstall(unittest.TestCase):
         obj = bpy.context.active_object
         imported = len(obj.data.polygons)
         self.assertGreater(imported, 1000)
+        # An edit: a rotation and a non-uniform scale, applied to the Gaussians exactly.
+        obj.rotation_euler = (0.3, -0.2, 0.9)
+        obj.scale = (1.5, 1.0, 0.75)
+        self.assertEqual(bpy.ops.object.raysplats_apply_transform(location=False, rotation=True, scale=True),
+                         {"FINISHED"})
+        self.assertEqual(tuple(obj.scale), (1.0, 1.0, 1.0))
 
         scene = bpy.context.scene
         camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
         scene.collection.objects.link(camera)
         scene.camera = camera
-        self.frame(camera, obj)
+        centre, radius = self.frame(camera, obj)
+        # A ground under the scene and a sun: the Gaussians cast their shadows on a mesh.
+        bpy.ops.mesh.primitive_plane_add(size=6 * radius, location=(centre.x, centre.y, centre.z - radius))
+        sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+        sun.data.energy = 3.0
+        sun.rotation_euler = (0.4, 0.3, 0.0)
+        scene.collection.objects.link(sun)
         scene.render.engine = "RAYSPLATS"
-        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 48, 32, 100
-        scene.raysplats.samples = 1
+        # 61 x 45: edge packets with inactive lanes.
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 61, 45, 100
+        scene.raysplats.samples = 4
         scene.render.film_transparent = True
-        scene.render.image_settings.file_format = "PNG"
-        scene.render.image_settings.color_mode = "RGBA"
-        image_path = os.path.join(ARGS.tmp_dir, "extension_render.png")
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.image_settings.color_depth = "32"
+        scene.render.image_settings.exr_codec = "NONE"
+        image_path = os.path.join(ARGS.tmp_dir, "extension_render.exr")
         scene.render.filepath = image_path
         self.assertEqual(bpy.ops.render.render(write_still=True), {"FINISHED"})
         image = bpy.data.images.load(image_path)
-        pixels = list(image.pixels)
-        covered = sum(1 for alpha in pixels[3::4] if alpha > 0.05)
-        # The scene fills much of the frame: an engine that drew nothing (or failed silently) leaves it empty.
-        self.assertGreater(covered, 48 * 32 // 10, "the RaySplats render is (nearly) empty")
+        pixels = np.array(image.pixels[:], np.float32).reshape(45, 61, 4)
+        covered = int((pixels[..., 3] > 0.05).sum())
+        # The scene and its ground fill much of the frame: an engine that drew nothing (or failed silently) leaves
+        # it empty.
+        self.assertGreater(covered, 61 * 45 // 3, "the RaySplats render is (nearly) empty")
 
-        out = os.path.join(ARGS.tmp_dir, "extension_export.spz")
-        if os.path.exists(out):
-            os.remove(out)
-        self.assertEqual(bpy.ops.export_scene.gaussian_splats(filepath=out), {"FINISHED"})
-        written = sys.modules[PACKAGE + ".native"].core().read_splats(out)
+        spz = os.path.join(ARGS.tmp_dir, "extension_export.spz")
+        glb = os.path.join(ARGS.tmp_dir, "extension_export.glb")
+        for out in (spz, glb):
+            if os.path.exists(out):
+                os.remove(out)
+        obj.select_set(True)
+        bpy.context.view_layer.objects.active = obj
+        self.assertEqual(bpy.ops.export_scene.gaussian_splats(filepath=spz), {"FINISHED"})
+        written = sys.modules[PACKAGE + ".native"].core().read_splats(spz)
         self.assertEqual(len(written["opacities"]), imported)
+        self.assertEqual(bpy.ops.export_scene.raysplats_mesh(filepath=glb, draco=True), {"FINISHED"})
+        self.assertGreater(os.path.getsize(glb), 1000)
+        if ARGS.out_dir:
+            os.makedirs(ARGS.out_dir, exist_ok=True)
+            np.save(os.path.join(ARGS.out_dir, "blender_render_rgba.npy"), pixels)
+            for path in (spz, glb):
+                shutil.copyfile(path, os.path.join(ARGS.out_dir, "blender_" + os.path.basename(path)))
 
     @staticmethod
     def frame(camera, obj):
@@ -107,6 +165,7 @@ class ExtensionInstall(unittest.TestCase):
         camera.location = centre + Vector((0.0, -2.5 * radius, 0.6 * radius))
         camera.rotation_euler = (centre - camera.location).to_track_quat("-Z", "Y").to_euler()
         camera.data.clip_end = 10 * radius
+        return centre, radius
 
 
 def main():

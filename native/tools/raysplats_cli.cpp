@@ -2,6 +2,16 @@
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <vector>
+
+#ifdef _WIN32
+#ifndef WIN32_LEAN_AND_MEAN
+#define WIN32_LEAN_AND_MEAN
+#endif
+#include <windows.h>
+// after windows.h, which it needs
+#include <shellapi.h>
+#endif
 
 #include "raysplats/splat_io.h"
 
@@ -9,7 +19,40 @@ namespace raysplats {
 int render_command(int argc, char** argv);  // render_command.cpp
 }
 
+#ifdef _WIN32
+namespace {
+// Windows hands main() its arguments in the ANSI code page, which cannot hold every file name; the core takes UTF-8
+// everywhere, so the arguments are taken again from the UTF-16 command line.
+std::vector<std::string> utf8_arguments() {
+    std::vector<std::string> out;
+    int count = 0;
+    wchar_t** wide = CommandLineToArgvW(GetCommandLineW(), &count);
+    for (int i = 0; wide && i < count; ++i) {
+        const int n = WideCharToMultiByte(CP_UTF8, 0, wide[i], -1, nullptr, 0, nullptr, nullptr);
+        std::string s(n > 0 ? std::size_t(n - 1) : 0, '\0');
+        if (n > 1) WideCharToMultiByte(CP_UTF8, 0, wide[i], -1, &s[0], n, nullptr, nullptr);
+        out.push_back(s);
+    }
+    if (wide) LocalFree(wide);
+    return out;
+}
+}  // namespace
+#endif
+
+int cli_main(int argc, char** argv);
+
 int main(int argc, char** argv) {
+#ifdef _WIN32
+    std::vector<std::string> arguments = utf8_arguments();
+    std::vector<char*> pointers;
+    for (std::string& a : arguments) pointers.push_back(&a[0]);
+    pointers.push_back(nullptr);
+    if (!arguments.empty()) return cli_main(int(arguments.size()), pointers.data());
+#endif
+    return cli_main(argc, argv);
+}
+
+int cli_main(int argc, char** argv) {
     if (argc >= 2 && std::string(argv[1]) == "render") return raysplats::render_command(argc - 1, argv + 1);
     if (argc < 3) {
         // The formats from the core's table: those written, and those only read.

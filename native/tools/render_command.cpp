@@ -35,6 +35,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -65,7 +66,7 @@ struct LoadedMesh {
 };
 
 LoadedMesh read_obj(const std::string& path) {
-    std::ifstream in(path);
+    std::ifstream in(std::filesystem::u8path(path));
     if (!in) throw FileFormatError(path, "cannot open");
     std::vector<float> v, vt, vn;
     LoadedMesh m;
@@ -321,7 +322,7 @@ int render_command(int argc, char** argv) {
             };
             if (a == "--scene") {
                 const std::string path = next();
-                std::ifstream in(path);
+                std::ifstream in(std::filesystem::u8path(path));
                 if (!in) throw FileFormatError(path, "cannot open");
                 try {
                     scene_json = json::parse(in);

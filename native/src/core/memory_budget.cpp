@@ -5,6 +5,17 @@
 #include <fstream>
 #include <string>
 
+#ifdef _WIN32
+#ifndef WIN32_LEAN_AND_MEAN
+#define WIN32_LEAN_AND_MEAN
+#endif
+#ifndef NOMINMAX
+#define NOMINMAX
+#endif
+#include <windows.h>
+#include <psapi.h>
+#endif
+
 #include "raysplats/gaussian_cloud.h"
 
 namespace raysplats {
@@ -37,6 +48,30 @@ std::uint64_t compact_import_memory_bytes(std::uint64_t count, int sh_degree) {
     const std::uint64_t points = 16 + 12 + 16 + 16 + 12 * (coeffs - 1);
     return count * (cloud + 16 + 2 * points);
 }
+
+#ifdef _WIN32
+
+// Physical memory not in use (what Task Manager calls available), capped by the room left under this process's job
+// object memory limit, if it has one (Windows' counterpart of a cgroup's memory.max).
+std::uint64_t available_memory_bytes() {
+    MEMORYSTATUSEX status{};
+    status.dwLength = sizeof(status);
+    std::uint64_t available = GlobalMemoryStatusEx(&status) ? std::uint64_t(status.ullAvailPhys) : 0;
+    JOBOBJECT_EXTENDED_LIMIT_INFORMATION job{};
+    PROCESS_MEMORY_COUNTERS_EX counters{};
+    counters.cb = sizeof(counters);
+    if (QueryInformationJobObject(nullptr, JobObjectExtendedLimitInformation, &job, sizeof(job), nullptr) &&
+        (job.BasicLimitInformation.LimitFlags & JOB_OBJECT_LIMIT_PROCESS_MEMORY) &&
+        K32GetProcessMemoryInfo(GetCurrentProcess(), reinterpret_cast<PROCESS_MEMORY_COUNTERS*>(&counters),
+                                sizeof(counters))) {
+        const std::uint64_t limit = job.ProcessMemoryLimit, used = counters.PrivateUsage;
+        const std::uint64_t room = limit > used ? limit - used : 0;
+        available = available ? std::min(available, room) : room;
+    }
+    return available;
+}
+
+#else
 
 namespace {
 // The first number in a file, or `fallback` (for "max" and for files that cannot be read).
@@ -75,5 +110,7 @@ std::uint64_t available_memory_bytes() {
     }
     return available;
 }
+
+#endif
 
 }  // namespace raysplats

@@ -21,7 +21,6 @@
 #define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <tiny_gltf.h>
 
-#include <sys/stat.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -58,14 +57,10 @@ bool is_splat_primitive(const tinygltf::Primitive& p) { return p.extensions.coun
 
 // --- File access for tinygltf: regular files only (no /dev/zero, no FIFOs), read whole.
 // Exists (whatever kind of file): fs_read then refuses what is not a regular file, with a message that says so.
-bool fs_file_exists(const std::string& path, void*) {
-    struct stat st {};
-    return ::stat(path.c_str(), &st) == 0;
-}
+bool fs_file_exists(const std::string& path, void*) { return os::path_status(path).exists; }
 std::string fs_expand(const std::string& path, void*) { return path; }
 bool fs_read(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
-    struct stat st {};
-    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) {
+    if (!os::path_status(path).is_regular_file) {
         if (err) *err += "buffer file '" + path + "' is missing or not a regular file\n";
         return false;
     }

@@ -9,11 +9,13 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <memory>
 #include <streambuf>
 #include <thread>
 #include <string>
 #include <vector>
 
+#include "core/os_files.h"
 #include "raysplats/default_init_allocator.h"
 #include "raysplats/errors.h"
 #include "raysplats/gaussian_cloud.h"
@@ -38,7 +40,6 @@ public:
     explicit FileBytes(const std::string& path);
     FileBytes(const std::uint8_t* data, std::size_t size, const std::string& name)
         : path_(name), data_(size ? data : nullptr), size_(size), in_memory_(true) {}
-    ~FileBytes();
     FileBytes(const FileBytes&) = delete;
     FileBytes& operator=(const FileBytes&) = delete;
 
@@ -53,13 +54,12 @@ private:
     std::string path_;
     const std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;
-    bool mapped_ = false;
     bool in_memory_ = false;
-    std::vector<std::uint8_t> buffer_;  // used when mapping is not possible
+    std::unique_ptr<os::FileView> file_;  // the file's bytes (mapped where possible); none for a view of memory
 };
 
 // Writes a file atomically: everything goes to a temporary file in the target's folder, which commit()
-// flushes, syncs and renames over the target. If commit() is never reached (an exception, a failed write),
+// flushes, syncs and moves over the target (os::replace_file: one step on Linux and on Windows). If commit() is never reached (an exception, a failed write),
 // the destructor removes the temporary file and the target is untouched. All failures throw
 // FileFormatError naming the target path.
 class AtomicFileWriter {
@@ -74,9 +74,9 @@ public:
     const std::string& temp_path() const { return temp_path_; }
 
 private:
-    void fail(const std::string& what);
+    [[noreturn]] void fail(const std::string& what, const os::Error& error);
     std::string path_, temp_path_;
-    int fd_ = -1;
+    os::NewFile file_;
     bool committed_ = false;
 };
 

@@ -2,7 +2,6 @@
 
 #include <cerrno>
 #include <cstring>
-#include <sys/stat.h>
 
 #include "io/zip_archive.h"
 
@@ -64,10 +63,9 @@ public:
     std::string meta_name() const override { return meta_path_; }
     Bytes read(const std::string& name, std::uint64_t max_bytes, const std::string& role) override {
         const std::string path = name == meta_path_ ? name : dir_ + name;
-        struct stat st {};
-        if (::stat(path.c_str(), &st) != 0)
-            throw FileFormatError(path, "meta.json ('" + meta_path_ + "') names this file (" + role + "), which cannot be opened: " +
-                                            std::strerror(errno));
+        if (!os::path_status(path).exists)
+            throw FileFormatError(path, "meta.json ('" + meta_path_ + "') names this file (" + role +
+                                            "), which cannot be opened: it does not exist");
         const FileBytes f(path);
         if (f.size() > max_bytes)
             throw FileFormatError(path, "is " + std::to_string(f.size()) + " bytes, more than " + role + " can need (" +

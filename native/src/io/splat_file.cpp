@@ -1,18 +1,14 @@
 // Format dispatch over the table, file access, atomic writes and the repair / filter step shared by all splat readers.
-#include <fcntl.h>
-#include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <random>
 
 #include "io/io_common.h"
@@ -26,110 +22,63 @@ namespace io {
 // FileBytes
 
 FileBytes::FileBytes(const std::string& path) : path_(path) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) throw FileFormatError(path, std::string("cannot open file: ") + std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd, &st) != 0) {
-        const int e = errno;
-        ::close(fd);
-        throw FileFormatError(path, std::string("cannot stat file: ") + std::strerror(e));
+    try {
+        file_ = std::make_unique<os::FileView>(path);
+    } catch (const os::Error& e) {
+        const std::string what = e.what();
+        throw FileFormatError(path, what == "is a directory, not a file" ? what : "cannot open or read file: " + what);
     }
-    if (S_ISDIR(st.st_mode)) {
-        ::close(fd);
-        throw FileFormatError(path, "is a directory, not a file");
-    }
-    size_ = static_cast<std::size_t>(st.st_size);
-    if (size_ == 0) {
-        ::close(fd);
-        return;
-    }
-    void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
-    if (p != MAP_FAILED) {
-        ::madvise(p, size_, MADV_SEQUENTIAL | MADV_WILLNEED);
-        data_ = static_cast<const std::uint8_t*>(p);
-        mapped_ = true;
-        ::close(fd);
-        return;
-    }
-    // Not mappable (a pipe, some network file systems): read it.
-    buffer_.resize(size_);
-    std::size_t done = 0;
-    while (done < size_) {
-        const ssize_t r = ::read(fd, buffer_.data() + done, size_ - done);
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0) {
-            const int e = errno;
-            ::close(fd);
-            throw FileFormatError(path, std::string("read error: ") + (r == 0 ? "unexpected end of file" : std::strerror(e)),
-                                  done);
-        }
-        done += static_cast<std::size_t>(r);
-    }
-    ::close(fd);
-    data_ = buffer_.data();
-}
-
-FileBytes::~FileBytes() {
-    if (mapped_) ::munmap(const_cast<std::uint8_t*>(data_), size_);
+    data_ = file_->data();
+    size_ = file_->size();
 }
 
 // ---------------------------------------------------------------------------------------------------------
 // AtomicFileWriter
 
-namespace {
-std::atomic<unsigned> g_temp_counter{0};
-}
-
 AtomicFileWriter::AtomicFileWriter(const std::string& path) : path_(path) {
     if (path.empty()) throw FileFormatError(path, "cannot write: empty file name");
-    struct stat st {};
-    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw FileFormatError(path, "cannot write: is a directory");
-    // The temporary file lives in the target's folder so that rename() is atomic (same file system).
-    // Created with mode 0666 so that the process umask applies, as for any ordinarily created file.
-    for (int attempt = 0; attempt < 100; ++attempt) {
-        temp_path_ = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(g_temp_counter++);
-        fd_ = ::open(temp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd_ >= 0) return;
-        if (errno != EEXIST) break;
+    if (os::path_status(path).is_directory) throw FileFormatError(path, "cannot write: is a directory");
+    // The temporary file lives in the target's folder so that replacing the target is one step (same file system).
+    try {
+        temp_path_ = os::create_temporary_beside(path, file_);
+    } catch (const os::Error& e) {
+        throw FileFormatError(path, std::string("cannot write: cannot create a temporary file beside it: ") + e.what());
     }
-    const int e = errno;
-    temp_path_.clear();
-    throw FileFormatError(path, std::string("cannot write: cannot create a temporary file beside it: ") + std::strerror(e));
 }
 
 AtomicFileWriter::~AtomicFileWriter() {
-    if (fd_ >= 0) ::close(fd_);
-    if (!committed_ && !temp_path_.empty()) ::unlink(temp_path_.c_str());
+    file_.close();
+    if (!committed_ && !temp_path_.empty()) os::remove_file(temp_path_);
 }
 
-void AtomicFileWriter::fail(const std::string& what) {
-    const int e = errno;
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-    if (!temp_path_.empty()) ::unlink(temp_path_.c_str());
+void AtomicFileWriter::fail(const std::string& what, const os::Error& error) {
+    file_.close();
+    if (!temp_path_.empty()) os::remove_file(temp_path_);
     temp_path_.clear();
-    throw FileFormatError(path_, "cannot write: " + what + ": " + std::strerror(e));
+    throw FileFormatError(path_, "cannot write: " + what + ": " + error.what());
 }
 
 void AtomicFileWriter::write(const void* data, std::size_t size) {
-    if (fd_ < 0) throw FileFormatError(path_, "cannot write: file already closed");
-    const char* p = static_cast<const char*>(data);
-    while (size > 0) {
-        const ssize_t w = ::write(fd_, p, std::min<std::size_t>(size, std::size_t(1) << 30));
-        if (w < 0 && errno == EINTR) continue;
-        if (w <= 0) fail("write to temporary file failed");
-        p += w;
-        size -= static_cast<std::size_t>(w);
+    if (!file_.is_open()) throw FileFormatError(path_, "cannot write: file already closed");
+    try {
+        file_.write(data, size);
+    } catch (const os::Error& e) {
+        fail("write to temporary file failed", e);
     }
 }
 
 void AtomicFileWriter::commit() {
-    if (fd_ < 0) throw FileFormatError(path_, "cannot write: file already closed");
-    if (::fsync(fd_) != 0) fail("fsync of temporary file failed");
-    const int fd = fd_;
-    fd_ = -1;
-    if (::close(fd) != 0) fail("close of temporary file failed");
-    if (::rename(temp_path_.c_str(), path_.c_str()) != 0) fail("rename of temporary file over the target failed");
+    if (!file_.is_open()) throw FileFormatError(path_, "cannot write: file already closed");
+    try {
+        file_.finish();
+    } catch (const os::Error& e) {
+        fail("flush and close of temporary file failed", e);
+    }
+    try {
+        os::replace_file(temp_path_, path_);
+    } catch (const os::Error& e) {
+        fail("replacing the target with the temporary file failed", e);
+    }
     committed_ = true;
 }
 

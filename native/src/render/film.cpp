@@ -11,25 +11,26 @@
 #define STB_IMAGE_WRITE_STATIC
 #include <stb/stb_image_write.h>
 
+#include "core/os_files.h"
 #include "raysplats/errors.h"
 #include "render_math.h"
 
 namespace raysplats {
 namespace {
 
-// Writes through a temporary file in the same folder and renames it over `path`, so a failed write never
-// leaves a half-written file in place of a good one.
-template <typename Write>
-void write_atomically(const std::string& path, Write write) {
-    const std::string tmp = path + ".tmp-raysplats";
-    if (!write(tmp)) {
-        std::remove(tmp.c_str());
-        throw Error("cannot write '" + path + "'");
+// Writes the encoded file through a temporary file in the same folder that then replaces `path`
+// (core/os_files.h), so a failed write never leaves a half-written file in place of a good one.
+void write_atomically(const std::string& path, const std::vector<unsigned char>& encoded) {
+    try {
+        os::write_file_atomically(path, encoded.data(), encoded.size());
+    } catch (const os::Error& e) {
+        throw Error("cannot write '" + path + "': " + e.what());
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw Error("cannot rename the temporary file onto '" + path + "'");
-    }
+}
+
+void append_bytes(void* context, void* data, int size) {
+    auto* out = static_cast<std::vector<unsigned char>*>(context);
+    out->insert(out->end(), static_cast<unsigned char*>(data), static_cast<unsigned char*>(data) + size);
 }
 
 }  // namespace
@@ -240,26 +241,24 @@ void Film::write_png(const std::string& path) const {
         }
         bytes[4 * i + 3] = (unsigned char)std::lround(255.0f * std::clamp(a, 0.0f, 1.0f));
     }
-    write_atomically(path, [&](const std::string& tmp) {
-        return stbi_write_png(tmp.c_str(), width, height, 4, bytes.data(), 4 * width) != 0;
-    });
+    std::vector<unsigned char> encoded;
+    if (!stbi_write_png_to_func(append_bytes, &encoded, width, height, 4, bytes.data(), 4 * width))
+        throw Error("cannot write '" + path + "': PNG encoding failed");
+    write_atomically(path, encoded);
 }
 
 void Film::write_pfm(const std::string& path) const {
-    write_atomically(path, [&](const std::string& tmp) {
-        FILE* f = std::fopen(tmp.c_str(), "wb");
-        if (!f) return false;
-        // PFM: rows bottom to top, little endian (negative scale).
-        std::fprintf(f, "PF\n%d %d\n-1.0\n", width, height);
-        std::vector<float> row(3 * std::size_t(width));
-        bool ok = true;
-        for (int y = height - 1; y >= 0 && ok; --y) {
-            for (int x = 0; x < width; ++x)
-                for (int c = 0; c < 3; ++c) row[3 * x + c] = rgba()[4 * (std::size_t(y) * width + x) + c];
-            ok = std::fwrite(row.data(), sizeof(float), row.size(), f) == row.size();
-        }
-        return std::fclose(f) == 0 && ok;
-    });
+    // PFM: a text header, then rows bottom to top of little-endian floats (the negative scale says so).
+    const std::string header = "PF\n" + std::to_string(width) + " " + std::to_string(height) + "\n-1.0\n";
+    std::vector<unsigned char> encoded(header.begin(), header.end());
+    std::vector<float> row(3 * std::size_t(width));
+    for (int y = height - 1; y >= 0; --y) {
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c) row[3 * x + c] = rgba()[4 * (std::size_t(y) * width + x) + c];
+        const auto* bytes = reinterpret_cast<const unsigned char*>(row.data());
+        encoded.insert(encoded.end(), bytes, bytes + row.size() * sizeof(float));
+    }
+    write_atomically(path, encoded);
 }
 
 }  // namespace raysplats
