@@ -18,7 +18,19 @@ for version in ${RAYSPLATS_TEST_BLENDERS-4.2 4.5 5.0 5.2 5.3}; do
 done
 # The second native module (Python 3.13, Blender 5.1+), when this machine has a Python 3.13.
 python313=$("$root/scripts/setup_python313.sh")
+# The Windows tier (ctest label windows): the module and zip cross-built for Windows x64 and tested in Windows'
+# Python and Blender 4.2 for Windows under Wine (docs/building.md). The first run builds the dependencies from Debian's
+# sources into ~/.cache/raysplats/windows; RAYSPLATS_TEST_WINDOWS=0 leaves the tier out.
+windows=()
+if [[ ${RAYSPLATS_TEST_WINDOWS:-1} != 0 ]]; then
+  windows_build=$("$root/scripts/windows/build.sh" "$root/build-windows")
+  windows_cache=$("$root/scripts/windows/setup_pythons.sh")
+  windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
+else
+  echo "test.sh: RAYSPLATS_TEST_WINDOWS=0: the Windows tier is NOT run" >&2
+  windows=(-DRAYSPLATS_WINDOWS_BUILD= -DRAYSPLATS_WINDOWS_BLENDER_SITE=)
+fi
 "$root/scripts/build.sh" "$root/build" "-DRAYSPLATS_BPY_PYTHONS=$(IFS=';'; echo "${bpy_pythons[*]}")" \
-  -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313"
+  -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313" "${windows[@]}"
 cd "$root/build"
 ctest --output-on-failure -j 2 "$@"

@@ -1,7 +1,7 @@
 # Lazy access to the native core, so that the add-on still registers (and says what is missing) when the
 # module has not been built, as the glTF add-on does for Draco.
-# The package may hold one module per Python ABI (the extension zip carries _native.cpython-311-*.so for Blender 4.2
-# to 5.0 and _native.cpython-313-*.so for 5.1+); `from . import _native` takes the one whose tag is this Python's
+# The package may hold one module per Python ABI (the extension zips carry _native.cpython-311-*.so or
+# _native.cp311-win_amd64.pyd for Blender 4.2 to 5.0, and the 313 ones for 5.1+); `from . import _native` takes the one whose tag is this Python's
 # (importlib.machinery.EXTENSION_SUFFIXES), so no choice is made here.
 import glob
 import importlib.machinery
@@ -22,8 +22,9 @@ def core():
         try:
             from . import _native
         except ImportError as error:
-            present = sorted(os.path.basename(path) for path in
-                             glob.glob(os.path.join(os.path.dirname(os.path.abspath(__file__)), "_native*.so")))
+            folder = os.path.dirname(os.path.abspath(__file__))
+            present = sorted(os.path.basename(path) for pattern in ("_native*.so", "_native*.pyd")
+                             for path in glob.glob(os.path.join(folder, pattern)))
             wanted = "_native" + importlib.machinery.EXTENSION_SUFFIXES[0]
             raise NativeModuleMissing(
                 f"The RaySplats native module for this Blender's Python {sys.version_info.major}."
