@@ -48,16 +48,20 @@ mkdir -p "$apt_dir/lists/partial" "$apt_dir/archives/partial" "$cache/tarballs"
 echo "deb-src http://deb.debian.org/debian bookworm main" > "$apt_dir/sources.list"
 apt_opts=(-o "Dir::Etc::SourceList=$apt_dir/sources.list" -o "Dir::Etc::SourceParts=/dev/null"
           -o "Dir::State::Lists=$apt_dir/lists" -o "Dir::Cache=$apt_dir")
+# apt drops to its _apt user to download, which cannot write into root's home: download as the caller instead.
+(( $(id -u) == 0 )) && apt_opts+=(-o "APT::Sandbox::User=root")
 apt_updated=0
 fetch() {  # fetch NAME VERSION SHA256 FILE: the upstream tarball of a Debian source package, checked
   local name=$1 version=$2 sha=$3 file=$4 target=$cache/tarballs/$4
   if [[ -f $target ]] && echo "$sha  $target" | sha256sum -c --quiet 2>/dev/null; then return; fi
-  if (( ! apt_updated )); then apt-get "${apt_opts[@]}" update -qq >&2; apt_updated=1; fi
+  if (( ! apt_updated )); then
+    apt-get "${apt_opts[@]}" update -qq >&2 || { log "apt-get update of the private source list failed"; exit 1; }
+    apt_updated=1
+  fi
   local uri
-  uri=$(apt-get "${apt_opts[@]}" --print-uris source "$name=${version%%+*}*" 2>/dev/null | tr -d "'" |
-        awk -v f="$file" '$2 == f {print $1}' | head -1)
-  [[ -n $uri ]] || uri=$(apt-get "${apt_opts[@]}" --print-uris source "$name" 2>/dev/null | tr -d "'" |
-                         awk -v f="$file" '$2 == f {print $1}' | head -1)
+  # The source package's current bookworm version; its upstream tarball is the pinned one (checked below).
+  uri=$(apt-get "${apt_opts[@]}" --print-uris source "$name" 2>/dev/null | tr -d "'" |
+        awk -v f="$file" '$2 == f {print $1}' | head -1) || true
   [[ -n $uri ]] || { log "Debian's archive lists no $file (source package $name)"; exit 1; }
   curl -fsSL -o "$target.part" "$uri" || { log "could not download $uri"; exit 1; }
   echo "$sha  $target.part" | sha256sum -c --quiet || { log "$file: SHA-256 differs from the pinned one"; exit 1; }
@@ -103,7 +107,7 @@ cmake_build onetbb "$(unpack "$(file_of onetbb)")" -DTBB_TEST=OFF -DTBB_EXAMPLES
 # -z link flags, no UTF-16 version resource in a static library, and the static TBB's Threads dependency found.
 src=$(unpack "$(file_of embree)")
 patch -d "$src" -p1 --quiet < "$here/patches/embree-mingw.patch"
-cmake_build embree "$src" -DEMBREE_STATIC_LIB=ON -DEMBREE_TASKING_SYSTEM=TBB -DEMBREE_TBB_ROOT="$prefix" \
+cmake_build embree "$src" -DEMBREE_STATIC_LIB=ON -DEMBREE_TASKING_SYSTEM=TBB -DTBB_DIR="$prefix/lib/cmake/TBB" \
   -DEMBREE_ISPC_SUPPORT=OFF -DEMBREE_TUTORIALS=OFF -DEMBREE_MAX_ISA=NONE -DEMBREE_ISA_SSE2=ON -DEMBREE_ISA_SSE42=ON \
   -DEMBREE_ISA_AVX=ON -DEMBREE_ISA_AVX2=ON -DEMBREE_ISA_AVX512=OFF -DEMBREE_RAY_MASK=ON -DEMBREE_FILTER_FUNCTION=ON \
   -DEMBREE_BACKFACE_CULLING=OFF -DEMBREE_GEOMETRY_TRIANGLE=ON -DEMBREE_GEOMETRY_USER=ON -DEMBREE_GEOMETRY_INSTANCE=ON \
