@@ -104,15 +104,15 @@ class Platform(unittest.TestCase):
         target = os.path.join(folder, "keep.ply")
         c = self.small
         _native.write_splats(target, c["positions"], c["rotations"], c["scales"], c["opacities"], c["sh"])
-        before = open(target, "rb").read()
-        bad = c["positions"].copy()
-        bad[5, 1] = np.nan
-        with self.assertRaises(Exception):
-            _native.write_splats(target, bad, c["rotations"], c["scales"], c["opacities"], c["sh"])
+        with open(target, "rb") as old:
+            before = old.read()
+        with self.assertRaises(Exception):  # one Gaussian fewer in the scales than in the positions
+            _native.write_splats(target, c["positions"], c["rotations"], c["scales"][1:], c["opacities"], c["sh"])
         with self.assertRaises(Exception) as raised:
             _native.write_splats(folder, c["positions"], c["rotations"], c["scales"], c["opacities"], c["sh"])
         self.assertIn(os.path.basename(folder), str(raised.exception))
-        self.assertEqual(open(target, "rb").read(), before)
+        with open(target, "rb") as kept:
+            self.assertEqual(kept.read(), before)
         self.assertEqual(os.listdir(folder), ["keep.ply"])
 
     def test_a_missing_foreign_file_is_an_error_naming_it(self):
