@@ -12,7 +12,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_first=1
 if [[ ${1:-} == --no-build ]]; then build_first=0; shift; fi
-build=${1:-$root/build}
+build=$(realpath -m "${1:-$root/build}")
 die() { echo "package_extension: $*" >&2; exit 1; }
 
 for tool in patchelf readelf strip ldd; do

@@ -9,7 +9,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
-build=${1:-$root/build-windows}
+build=$(realpath -m "${1:-$root/build-windows}")
 prefix=$("$here/build_deps.sh")
 cache=$("$here/setup_pythons.sh")
 export RAYSPLATS_WINDOWS_PREFIX=$prefix

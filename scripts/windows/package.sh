@@ -9,7 +9,7 @@ here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 build_first=1
 if [[ ${1:-} == --no-build ]]; then build_first=0; shift; fi
-build=${1:-$root/build-windows}
+build=$(realpath -m "${1:-$root/build-windows}")
 die() { echo "windows package: $*" >&2; exit 1; }
 if ((build_first)); then "$here/build.sh" "$build" >/dev/null; fi
 
