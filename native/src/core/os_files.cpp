@@ -182,8 +182,17 @@ bool NewFile::is_open() const { return handle_ != -1; }
 NewFile::~NewFile() { close(); }
 
 void replace_file(const std::string& from, const std::string& to) {
-    if (!MoveFileExW(widen(from).c_str(), widen(to).c_str(), MOVEFILE_REPLACE_EXISTING | MOVEFILE_WRITE_THROUGH))
-        fail_last();
+    const std::wstring source = widen(from), target = widen(to);
+    // A virus scanner or the search indexer may hold the old file open for a moment after it was written or read;
+    // MoveFileExW then fails with a sharing violation or access denied. Retrying for up to half a second outlasts
+    // such scans; a file that stays locked (or a read-only target) still fails with the system's message.
+    for (int attempt = 0;; ++attempt) {
+        if (MoveFileExW(source.c_str(), target.c_str(), MOVEFILE_REPLACE_EXISTING | MOVEFILE_WRITE_THROUGH)) return;
+        const DWORD error = GetLastError();
+        if (attempt == 10 || (error != ERROR_SHARING_VIOLATION && error != ERROR_ACCESS_DENIED)) break;
+        Sleep(50);
+    }
+    fail_last();
 }
 
 void remove_file(const std::string& path) noexcept {

@@ -2,6 +2,7 @@
 // format writers. The patch construction is the formula at the top of raysplats/mesh_export.h.
 #include "raysplats/mesh_export.h"
 
+#include <glm/gtc/constants.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -137,7 +138,7 @@ ExportMesh splat_patches(const GaussianCloud& cloud, const PolygonSettings& sett
     }
     std::vector<double> rim_cos(K), rim_sin(K);
     for (int k = 0; k < K; ++k) {
-        const double theta = 2.0 * M_PI * k / K;
+        const double theta = glm::two_pi<double>() * k / K;  // M_PI is POSIX, not C++
         rim_cos[k] = std::cos(theta);
         rim_sin[k] = std::sin(theta);
     }
