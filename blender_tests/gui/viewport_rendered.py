@@ -22,16 +22,32 @@ sys.path.insert(0, options["--addon-dir"])
 import raysplats  # noqa: E402
 
 raysplats.register()
+from raysplats.blender import mesh_read  # noqa: E402
 from raysplats.engine import final, viewport  # noqa: E402
 
 state = {"tick": 0, "phase": "refine", "started": time.perf_counter()}
-TIMEOUT_SECONDS = 240
+# A hang guard, not a verdict on speed: the test takes about 2.5 minutes alone and several times that beside other
+# builds; ctest's TIMEOUT (blender_tests/CMakeLists.txt) is above it, so this message, naming the phase, comes first.
+HANG_GUARD_SECONDS = 1500
 MAX_UI_GAP_SECONDS = 0.1
 REDRAW_BASELINE_SECONDS = 1.5
 # Moving EDITED_FACES splats in Edit Mode: the time from the edit to the first updated image, Blender's own update and
-# undo step included (docs/benchmarks.md, Editing big scenes, has the figures); the bound is an option, per scene.
+# undo step included, is printed (docs/benchmarks.md, Editing big scenes, has the figures) and not bounded here (it
+# swings with the machine's load); the verdict is on behaviour: every read of the moved mesh went in place through
+# its BMesh (mesh_read.read_edit_mode_positions returned "read"), none converted the whole mesh.
 EDITED_FACES = 100
-MAX_EDIT_MODE_FIRST_IMAGE_SECONDS = float(options.get("--max-edit-seconds", "inf"))
+edit_mode_reads = []  # what read_edit_mode_positions returned during the phase 'edit-mode vertices'
+_read_edit_mode_positions = mesh_read.read_edit_mode_positions
+
+
+def _counted_edit_mode_read(*args):
+    result = _read_edit_mode_positions(*args)
+    if state["phase"] == "edit-mode vertices":
+        edit_mode_reads.append(result)
+    return result
+
+
+mesh_read.read_edit_mode_positions = _counted_edit_mode_read
 # The UI timer: ticks every 10 ms when Blender's main loop is free; `gap` is the longest interval between two ticks
 # while `measuring`.
 ui_timer = {"last": None, "gap": 0.0, "measuring": False, "ticks": 0}
@@ -185,8 +201,8 @@ def step():
                     area.spaces.active.overlay.show_overlays = False
                     area.tag_redraw()
             return 1.0
-        if time.perf_counter() - state["started"] > TIMEOUT_SECONDS:
-            fail(f"timed out in phase '{state['phase']}': {viewport.last_draw}")
+        if time.perf_counter() - state["started"] > HANG_GUARD_SECONDS:
+            fail(f"no end after {HANG_GUARD_SECONDS} s (a hang), in phase '{state['phase']}': {viewport.last_draw}")
         if state["phase"] == "refine":
             if viewport.last_draw["draws"] > 0 and not ui_timer["measuring"] and "gap_start" not in state:
                 # The scene is synced (on the UI thread, once) and the render runs: measure from here.
@@ -251,9 +267,9 @@ def step():
         print(f"VIEWPORT: '{state['phase']}' updated in place; first image {first_image:.3f} s after the edit"
               + (f" (the operator itself {state['operator_seconds']:.3f} s, {state['edit_mode_objects']} objects in "
                  "Edit Mode)" if "operator_seconds" in state else ""), flush=True)
-        if state["phase"] == "edit-mode vertices" and first_image > MAX_EDIT_MODE_FIRST_IMAGE_SECONDS:
-            fail(f"the first image after moving {EDITED_FACES} splats in Edit Mode came {first_image:.3f} s after the "
-                 f"edit (bound {MAX_EDIT_MODE_FIRST_IMAGE_SECONDS} s)")
+        if state["phase"] == "edit-mode vertices" and (not edit_mode_reads or set(edit_mode_reads) != {"read"}):
+            fail(f"moving {EDITED_FACES} splats in Edit Mode was not read in place from the BMesh: "
+                 f"read_edit_mode_positions returned {edit_mode_reads}")
         if state["phase"] == "move":
             edit("object-mode vertices")
             return 0.1

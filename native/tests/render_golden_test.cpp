@@ -221,7 +221,8 @@ const GoldenCase kCases[] = {
      GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::Baked, BlendSpace::Display},
 };
 
-Film render_case(const GoldenScene& gs, const GoldenCase& gc, const std::string& embree_config) {
+Film render_case(const GoldenScene& gs, const GoldenCase& gc, const std::string& embree_config, int width = 64,
+                 int height = 48) {
     Scene scene(embree_config);
     if (gc.interactive_chunk) scene.set_interactive(true, gc.interactive_chunk);
     gs.fill(scene);
@@ -240,8 +241,8 @@ Film render_case(const GoldenScene& gs, const GoldenCase& gc, const std::string&
     cam.focal_length_mm = 30.0f;
     cam.ortho_scale = 2.5f * r;
     RenderSettings s;
-    s.width = 64;
-    s.height = 48;
+    s.width = width;
+    s.height = height;
     s.samples = 3;
     s.max_bounces = 3;
     s.seed = 7;
@@ -293,18 +294,23 @@ TEST(RenderGolden, FilmsAreBitIdenticalToTheRecordedOnes) {
         GTEST_SKIP() << "no golden films recorded for " << path << " (this CPU's family and group test)";
 }
 
-// The same scenes under the machine's own instruction set (or RAYSPLATS_EMBREE_CONFIG) and under AVX2 agree with the
-// recorded instruction set's films. They cannot be equal: Embree's triangle distances differ in their last bits
-// (see the header), and a bounce or a stochastic decision that a last bit tips goes another way. What a wrong
-// renderer does, a lost row of Gaussians or a misplaced hit, changes whole pixels, which these bounds catch: over
-// all channels of a film, the mean absolute difference of colour at most 2e-3 and at most 1 % of pixels differing
-// by more than 0.1 in any colour channel or in alpha; depth: at most 1 % of pixels differing by more than 1 % of
-// the scene's size. (AMD EPYC, AVX2 against SSE4.2: mean differences 2e-9 to 3.6e-4, at most 6 of 3072 pixels off
-// in colour, none in depth.)
+// The same scenes under the machine's own instruction set (or RAYSPLATS_EMBREE_CONFIG) and under each other one this
+// CPU runs (AVX2, AVX-512) agree with the recorded instruction set's films. They cannot be equal: Embree's triangle
+// distances differ in their last bits (see the header), and a bounce or a stochastic decision that a last bit tips goes
+// another way. The films are 61 x 45, so that the 4 x 4 packets along the right and bottom edges have inactive lanes
+// (the tiles' last columns and rows); every case mixes meshes and Gaussians. Per pixel the difference is the largest
+// of |d rgba| and |d alpha|; a film may have at most kMaxShareDiffering of its pixels differing by more than
+// kVisibleDifference, none by more than kMaxDifference, and at most 1 % of its pixels differing in depth by more than 1 %
+// of the scene's size. The two bounds are about 2.5 times the largest values measured over all cases and instruction
+// sets (docs/benchmarks.md, Cross-ISA agreement): a bug confined to a few packets (16 pixels each) exceeds the share.
+constexpr float kVisibleDifference = 1e-3f;  // a quarter of an 8-bit step
+constexpr double kMaxShareDiffering = 0.005;
+constexpr float kMaxDifference = 0.5f;
 TEST(RenderGolden, FilmsUnderOtherInstructionSetsAgree) {
     const GoldenScene scene;
+    constexpr int kWidth = 61, kHeight = 45;
     std::vector<std::string> configs;
-    for (const std::string& c : {default_embree_config(), std::string("isa=avx2")}) {
+    for (const std::string& c : {default_embree_config(), std::string("isa=avx2"), std::string("isa=avx512")}) {
         if (c == kGoldenIsa || std::find(configs.begin(), configs.end(), c) != configs.end()) continue;
         try {
             Scene probe(c);
@@ -314,32 +320,37 @@ TEST(RenderGolden, FilmsUnderOtherInstructionSetsAgree) {
         }
     }
     if (configs.empty()) GTEST_SKIP() << "no instruction set besides " << kGoldenIsa << " on this CPU";
+    float worst_difference = 0.0f;
+    double worst_share = 0.0;
     for (const GoldenCase& gc : kCases) {
-        const Film reference = render_case(scene, gc, kGoldenIsa);
+        const Film reference = render_case(scene, gc, kGoldenIsa, kWidth, kHeight);
+        ASSERT_EQ(reference.pixel_count(), std::size_t(kWidth * kHeight));
         for (const std::string& config : configs) {
-            const Film film = render_case(scene, gc, config);
+            const Film film = render_case(scene, gc, config, kWidth, kHeight);
             const std::size_t n = film.pixel_count();
-            double abs_sum = 0.0;
-            std::size_t colour_outliers = 0, depth_outliers = 0;
+            float largest = 0.0f;
+            std::size_t differing = 0, any_bits = 0, depth_outliers = 0;
             for (std::size_t p = 0; p < n; ++p) {
-                float worst = std::abs(film.alpha()[p] - reference.alpha()[p]);
-                for (int c = 0; c < 4; ++c) {
-                    const float d = std::abs(film.rgba()[4 * p + c] - reference.rgba()[4 * p + c]);
-                    abs_sum += d;
-                    worst = std::max(worst, d);
-                }
-                colour_outliers += worst > 0.1f;
+                float d = std::abs(film.alpha()[p] - reference.alpha()[p]);
+                for (int c = 0; c < 4; ++c) d = std::max(d, std::abs(film.rgba()[4 * p + c] - reference.rgba()[4 * p + c]));
+                largest = std::max(largest, d);
+                differing += d > kVisibleDifference;
+                any_bits += d > 0.0f;
                 const float da = film.depth()[p], db = reference.depth()[p];
                 const bool both_far = !std::isfinite(da) && !std::isfinite(db);
                 depth_outliers += !both_far && !(std::abs(da - db) <= 0.01f * scene.radius());
             }
-            const double mean_abs = abs_sum / double(4 * n);
-            std::printf("%-60s %-12s mean |d rgba| %.2e, pixels off in colour %zu, in depth %zu (of %zu)\n",
-                        gc.name, config.empty() ? "(default)" : config.c_str(), mean_abs, colour_outliers,
-                        depth_outliers, n);
-            EXPECT_LE(mean_abs, 2e-3) << gc.name << " under " << config;
-            EXPECT_LE(colour_outliers, n / 100) << gc.name << " under " << config;
+            const double share = double(differing) / double(n);
+            worst_difference = std::max(worst_difference, largest);
+            worst_share = std::max(worst_share, share);
+            std::printf("%-60s %-12s max |d| %.3g, pixels differing %zu (%.3f %%; in any bit %zu), in depth %zu "
+                        "(of %zu)\n", gc.name, config.empty() ? "(default)" : config.c_str(), largest, differing,
+                        100.0 * share, any_bits, depth_outliers, n);
+            EXPECT_LE(largest, kMaxDifference) << gc.name << " under " << config;
+            EXPECT_LE(share, kMaxShareDiffering) << gc.name << " under " << config;
             EXPECT_LE(depth_outliers, n / 100) << gc.name << " under " << config;
         }
     }
+    std::printf("worst over all films: max |d| %.3g (bound %.3g), share differing %.3f %% (bound %.3f %%)\n",
+                worst_difference, kMaxDifference, 100.0 * worst_share, 100.0 * kMaxShareDiffering);
 }
