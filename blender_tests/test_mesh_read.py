@@ -415,7 +415,7 @@ class MeshRead(unittest.TestCase):
                 slow, warnings = read_arrays()
             self.assertEqual(reads, ["unavailable", "unavailable"])
             self.assertEqual(warnings.count("warning"), 1, warnings)
-            self.assertIn("Edit Mode", warnings)
+            self.assertIn("Edit Mode" if patches is broken else blender_memory.DISTRUST_VARIABLE, warnings)
             self.assertEqual(len(slow), len(fast))
             for a, b in zip(slow, fast):
                 self.assertTrue(np.array_equal(a, b))

@@ -94,15 +94,21 @@ def floats_at(address, count):
     return struct.unpack(f"<{count}f", read(address, 4 * count))
 
 
-def warn_once(what, why):
-    """Says once per session (per `what`) that a fast path is off and the Python API reads instead."""
-    if what in _warned:
+def _warn_once(key, message):
+    if key in _warned:
         return
-    _warned.add(what)
-    print(f"RaySplats: warning: {what} goes through Blender's Python API (slower): {why}", file=sys.stderr, flush=True)
+    _warned.add(key)
+    print(f"RaySplats: warning: {message}", file=sys.stderr, flush=True)
 
 
-def unavailable_reason():
-    if os.environ.get(DISTRUST_VARIABLE, "") not in ("", "0"):
-        return f"{DISTRUST_VARIABLE} is set"
-    return "this system has no safe way to read Blender's memory (/proc/self/mem)"
+def warn_fallback(what, layout_differs):
+    """The one warning that a fast path is off for the session and the Python API reads instead: per `what` (e.g.
+    "Reading Edit Mode meshes") when Blender's layout differs from the expected one (`layout_differs` says how), or a
+    single one for every fast path when memory cannot be read safely here at all."""
+    if available():
+        _warn_once(what, f"{what} goes through Blender's Python API (slower): {layout_differs}")
+    elif os.environ.get(DISTRUST_VARIABLE, "") not in ("", "0"):
+        _warn_once(None, f"Blender's arrays are read through its Python API (slower): {DISTRUST_VARIABLE} is set")
+    else:
+        _warn_once(None, "Blender's arrays are read through its Python API (slower): this system has no safe way to "
+                         "read Blender's memory (/proc/self/mem)")

@@ -71,11 +71,6 @@ def read_vertex_positions(mesh, out):
     return "foreach_get"
 
 
-def _warn_layout(what, layout_differs):
-    """The one warning for a fast read that is off for the session: why (no safe reads here, or another layout)."""
-    blender_memory.warn_once(what, layout_differs if blender_memory.available() else blender_memory.unavailable_reason())
-
-
 def _field_view(elements, stride, offset, value_of):
     """The 4-byte integer `offset` bytes into each element of the bpy collection `elements`, in place in Blender's
     array (uint32, valid while the mesh is unchanged), or None when the array is not laid out `stride` bytes per
@@ -119,7 +114,8 @@ def read_corner_vertices(mesh, out):
             np.copyto(out, view.view(out.dtype))
             return "pointer"
         _loop_layout_failed = True
-        _warn_layout("Reading a mesh's corners", "its loop array is not laid out as compat.LOOP_STRIDE says")
+        blender_memory.warn_fallback("Reading a mesh's corners",
+                                     "its loop array is not laid out as compat.LOOP_STRIDE says")
     mesh.loops.foreach_get("vertex_index", out)
     return "foreach_get"
 
@@ -163,7 +159,8 @@ def read_face_corners(mesh, sizes=None, starts=None):
                     np.copyto(out, view.view(np.int32))
             return "pointer"
         _face_layout_failed = True
-        _warn_layout("Reading a mesh's faces", "its face array is not laid out as compat.FACE_STRIDE says")
+        blender_memory.warn_fallback("Reading a mesh's faces",
+                                     "its face array is not laid out as compat.FACE_STRIDE says")
     for out, name in ((starts, "loop_start"), (sizes, "loop_total")):
         if out is not None:
             mesh.polygons.foreach_get(name, out)
@@ -382,10 +379,8 @@ def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face
             _bmesh_offsets = None
         if _bmesh_offsets is None:
             _bmesh_layout_failed = True
-            blender_memory.warn_once(
-                "Reading Edit Mode meshes",
-                f"on Blender {bpy.app.version_string} the BMesh layout probe found no layout that reads as bmesh "
-                "reports" if blender_memory.available() else blender_memory.unavailable_reason())
+            blender_memory.warn_fallback("Reading Edit Mode meshes", f"on Blender {bpy.app.version_string} the BMesh "
+                                         "layout probe found no layout that reads as bmesh reports")
             return "unavailable"
     bm = bmesh.from_edit_mesh(mesh)
     # Clean element tables are what the native read relies on; both calls are free while nothing changed them.
@@ -398,8 +393,8 @@ def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face
         holds = False
     if not holds:
         _bmesh_layout_failed = True
-        blender_memory.warn_once("Reading Edit Mode meshes",
-                                 f"the BMesh of '{mesh.name}' does not read as bmesh reports it")
+        blender_memory.warn_fallback("Reading Edit Mode meshes",
+                                     f"the BMesh of '{mesh.name}' does not read as bmesh reports it")
         return "unavailable"
     _bmesh_checked.add(address)
     core = native.core()
