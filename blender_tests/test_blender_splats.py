@@ -1,9 +1,9 @@
-# Blender's own Gaussian splats (a GAUSSIAN_SPLAT point cloud made by 5.3's wm.ply_import) are splat objects of the
-# add-on like its own: they render like the add-on's import of the same file, export every writable format with the
-# file's values (and A Σ Aᵀ, turned SH under a transform), take the exact Apply Transform, lend a region to Edit
-# Selected as Polygons and take it back; their up axis is their matrix (identity: the file's axes). The add-on's own
-# import into Blender splats writes exactly the attributes 5.3's importer writes. Blenders without splat point clouds
-# skip these tests.
+# Blender's own Gaussian splats (a GAUSSIAN_SPLAT point cloud made by 5.3's wm.ply_import or wm.spz_import) are splat
+# objects of the add-on like its own: they render like the add-on's import of the same file, export every writable
+# format with the file's values (and A Σ Aᵀ, turned SH under a transform), take the exact Apply Transform, lend a
+# region to Edit Selected as Polygons and take it back; their up axis is their matrix (identity: the file's axes for a
+# PLY; SPZ's are turned to Z up by the importer). The add-on's own import into Blender splats writes exactly the
+# attributes 5.3's importer writes. Blenders without splat point clouds skip these tests.
 import math
 import unittest
 
