@@ -360,6 +360,14 @@ class MeshRead(unittest.TestCase):
         # Unmapped memory is an error, not a crash.
         with self.assertRaises(blender_memory.MemoryUnreadable):
             blender_memory.pointer_at(16)
+        # Without /proc (Windows): nothing can be read safely, so the probe finds nothing and reads nothing.
+        with mock.patch.object(blender_memory.sys, "platform", "win32"), \
+                mock.patch.object(blender_memory, "_opened", False), mock.patch.object(blender_memory, "_mem_fd", None):
+            self.assertFalse(blender_memory.available())
+            self.assertIsNone(mesh_read.probe_bmesh_layout())
+            with self.assertRaises(blender_memory.MemoryUnreadable):
+                blender_memory.pointer_at(id(self))
+        self.assertTrue(blender_memory.available())
 
     def test_a_failed_bmesh_probe_falls_back_to_the_python_api_with_one_warning_and_the_same_arrays(self):
         """The viewport's Edit Mode read (sync's _read) after a move gives the same arrays from the BMesh in place
