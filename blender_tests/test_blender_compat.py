@@ -48,10 +48,12 @@ EXPECTED = {
     "IMAGE_FORMAT_HAS_MEDIA_TYPE": since((5, 0), True, False),
     "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
     "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
+    "NEWER_THAN_TESTED": since((5, 2), False, False),  # every Blender in this table was tested
 }
 # Names in compat.py that are the same on every version (layouts, keys), not probed.
 CONSTANTS = {"SOLID_COLOR_TYPE_ATTRIBUTE", "MESH_CORNER_VERTEX_ATTRIBUTE", "LOOP_VERTEX_OFFSET", "FACE_START_OFFSET",
-             "MESH_ARRAY_ATTRIBUTES", "MESH_SELECTION_ATTRIBUTES", "ATTRIBUTE_VALUE_KEY", "BMESH_LAYOUT"}
+             "MESH_ARRAY_ATTRIBUTES", "MESH_SELECTION_ATTRIBUTES", "ATTRIBUTE_VALUE_KEY", "BMESH_LAYOUT",
+             "NEWEST_TESTED_BLENDER"}
 
 
 def running_version():
@@ -119,11 +121,12 @@ class CompatFacts(unittest.TestCase):
             bpy.data.meshes.remove(mesh)
 
     def test_bmesh_python_objects_hold_their_pointers_at_the_offsets(self):
-        # Read at the offsets, bmesh's Python objects must give a BMesh with the counts Python sees and a vertex at
-        # the position Python sees (a wrong offset reads a word of the object header: not an aligned pointer).
-        import ctypes
-
+        # Read at the offsets (safely: a wrong one is an error, not a crash), bmesh's Python objects must give a BMesh
+        # with the counts Python sees and a vertex at the position Python sees (a wrong offset reads a word of the
+        # object header: not an aligned pointer).
         import bmesh
+
+        from raysplats.blender import blender_memory
         bm = bmesh.new()
         try:
             for k in range(5):
@@ -131,16 +134,29 @@ class CompatFacts(unittest.TestCase):
             bm.verts.ensure_lookup_table()
             bm.faces.new([bm.verts[k] for k in range(4)])
             layout = compat.BMESH_LAYOUT
-            address = ctypes.c_void_p.from_address(id(bm) + compat.BPY_BMESH_POINTER_OFFSET).value
+            address = blender_memory.pointer_at(id(bm) + compat.BPY_BMESH_POINTER_OFFSET)
             self.assertTrue(address and address % 8 == 0, f"not a pointer: {address!r}")
-            counts = tuple(ctypes.c_int.from_address(address + layout[key]).value for key in ("totvert", "totface"))
+            counts = tuple(blender_memory.int_at(address + layout[key]) for key in ("totvert", "totface"))
             self.assertEqual(counts, (5, 1))
             vert = bm.verts[2]
-            element = ctypes.c_void_p.from_address(id(vert) + compat.BPY_BMELEM_POINTER_OFFSET).value
+            element = blender_memory.pointer_at(id(vert) + compat.BPY_BMELEM_POINTER_OFFSET)
             self.assertTrue(element and element % 8 == 0, f"not a pointer: {element!r}")
-            self.assertEqual(tuple((ctypes.c_float * 3).from_address(element + layout["vert_co"])), (2.0, 0.0, 0.0))
+            self.assertEqual(blender_memory.floats_at(element + layout["vert_co"], 3), (2.0, 0.0, 0.0))
         finally:
             bm.free()
+
+    def test_the_manifest_admits_blender_up_to_the_newest_tested_and_no_further(self):
+        # blender_version_max is exclusive: one minor version past NEWEST_TESTED_BLENDER.
+        import os
+        import re
+        manifest = os.path.join(os.path.dirname(compat.__file__), "..", "blender_manifest.toml")
+        with open(manifest, encoding="utf-8") as f:
+            found = re.search(r'^blender_version_max = "(\d+)\.(\d+)\.0"$', f.read(), re.MULTILINE)
+        self.assertIsNotNone(found, "no blender_version_max in blender_manifest.toml")
+        major, minor = compat.NEWEST_TESTED_BLENDER
+        self.assertEqual((int(found.group(1)), int(found.group(2))), (major, minor + 1))
+        self.assertEqual(compat.NEWER_THAN_TESTED, running_version() > compat.NEWEST_TESTED_BLENDER)
+
 
 if __name__ == "__main__":
     unittest.main()

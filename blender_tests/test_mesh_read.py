@@ -1,6 +1,9 @@
 # Reading a Gaussian mesh back (polygon_mesh.mesh_arrays): the fast reads (attributes on 4.x, Blender's loop and face
 # arrays in place) give exactly what Blender's own foreach_get gives, after edits of the positions and of the
 # topology, on empty meshes, and through the foreach_get fallback when the loop or face layout is not the expected one.
+import contextlib
+import io
+import os
 import unittest
 from unittest import mock
 
@@ -9,7 +12,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.blender import compat, mesh_read
+from raysplats.blender import blender_memory, compat, mesh_read
 from raysplats.objects import polygon_mesh
 
 SCENE = "donut_sh0.ply"
@@ -60,6 +63,8 @@ class MeshRead(unittest.TestCase):
         mesh_read._loop_layout_failed = False
         mesh_read._face_layout_failed = False
         mesh_read._bmesh_layout_failed = False
+        mesh_read._bmesh_offsets = None
+        mesh_read._bmesh_checked.clear()
         if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
 
@@ -335,3 +340,90 @@ class MeshRead(unittest.TestCase):
         bpy.ops.object.mode_set(mode="OBJECT")
         positions = np.empty((len(obj.data.vertices), 3), dtype=np.float32)
         self.assertEqual(mesh_read.read_edit_mode_positions(obj.data, positions, *topology), "unavailable")
+
+    def test_the_bmesh_probe_finds_the_offsets_of_the_table_and_searches_them_on_a_newer_blender(self):
+        """The probe confirms compat's offsets of bmesh's Python objects on a known BMesh; with a wrong table it finds
+        nothing on a tested Blender (the table is what it checks), and on a Blender newer than the ones tested it
+        finds the right offsets among the candidates. Every candidate is read safely: no wrong one crashes Blender."""
+        table = (compat.BPY_BMESH_POINTER_OFFSET, compat.BPY_BMELEM_POINTER_OFFSET)
+        self.assertTrue(blender_memory.available())
+        self.assertEqual(mesh_read.probe_bmesh_layout(), table)
+        with mock.patch.object(compat, "BPY_BMESH_POINTER_OFFSET", 40), \
+                mock.patch.object(compat, "BPY_BMELEM_POINTER_OFFSET", 48):
+            self.assertIsNone(mesh_read.probe_bmesh_layout())
+            with mock.patch.object(compat, "NEWER_THAN_TESTED", True):
+                self.assertEqual(mesh_read.probe_bmesh_layout(), table)
+        # A BMesh field off by 4 bytes is found wrong whatever the offsets.
+        with mock.patch.object(compat, "BMESH_LAYOUT", dict(compat.BMESH_LAYOUT, loop_next=60)), \
+                mock.patch.object(compat, "NEWER_THAN_TESTED", True):
+            self.assertIsNone(mesh_read.probe_bmesh_layout())
+        # Unmapped memory is an error, not a crash.
+        with self.assertRaises(blender_memory.MemoryUnreadable):
+            blender_memory.pointer_at(16)
+        # Without /proc (Windows): nothing can be read safely, so the probe finds nothing and reads nothing.
+        with mock.patch.object(blender_memory.sys, "platform", "win32"), \
+                mock.patch.object(blender_memory, "_opened", False), mock.patch.object(blender_memory, "_mem_fd", None):
+            self.assertFalse(blender_memory.available())
+            self.assertIsNone(mesh_read.probe_bmesh_layout())
+            with self.assertRaises(blender_memory.MemoryUnreadable):
+                blender_memory.pointer_at(id(self))
+        self.assertTrue(blender_memory.available())
+
+    def test_a_failed_bmesh_probe_falls_back_to_the_python_api_with_one_warning_and_the_same_arrays(self):
+        """The viewport's Edit Mode read (sync's _read) after a move gives the same arrays from the BMesh in place
+        as through Blender's conversion, which it takes, with one warning, when the probe fails (a wrong offset in
+        compat's table) or memory may not be read (RAYSPLATS_DISTRUST_BLENDER_MEMORY)."""
+        from raysplats.engine import sync
+        obj = st.import_file(SCENE)
+        bpy.context.view_layer.objects.active = obj
+        bpy.ops.object.mode_set(mode="EDIT")
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        scene_sync = sync.SceneSync(depsgraph, interactive=True)
+        first = scene_sync._read(obj.evaluated_get(depsgraph), depsgraph)
+        bpy.context.tool_settings.mesh_select_mode = (False, False, True)
+        bpy.ops.mesh.select_all(action="DESELECT")
+        edit = bmesh.from_edit_mesh(obj.data)
+        edit.faces.ensure_lookup_table()
+        for face in (3, 4, 500):
+            edit.faces[face].select_set(True)
+        bmesh.update_edit_mesh(obj.data)
+        bpy.ops.transform.translate(value=(0.0, 0.04, 0.0))
+        bpy.context.view_layer.update()
+        reads = []
+        reader = mesh_read.read_edit_mode_positions
+
+        def counted_reader(*args):
+            reads.append(reader(*args))
+            return reads[-1]
+
+        def read_arrays():
+            mesh_read._bmesh_offsets = None
+            mesh_read._bmesh_layout_failed = False
+            mesh_read._bmesh_checked.clear()
+            blender_memory._warned.clear()
+            stderr = io.StringIO()
+            with mock.patch.object(mesh_read, "read_edit_mode_positions", side_effect=counted_reader), \
+                    contextlib.redirect_stderr(stderr):
+                source = scene_sync._read(obj.evaluated_get(depsgraph), depsgraph, previous=first)
+                scene_sync._read(obj.evaluated_get(depsgraph), depsgraph, previous=first)
+            return [np.copy(a) for a in source.arrays], stderr.getvalue()
+
+        fast, warnings = read_arrays()
+        self.assertEqual(reads, ["read", "read"])
+        self.assertEqual(warnings, "")
+        self.assertFalse(np.array_equal(fast[0], first.arrays[0]))  # the move shows
+        broken = (mock.patch.object(compat, "BPY_BMESH_POINTER_OFFSET", 40),
+                  mock.patch.object(compat, "BPY_BMELEM_POINTER_OFFSET", 48))
+        distrust = (mock.patch.dict(os.environ, {blender_memory.DISTRUST_VARIABLE: "1"}),)
+        for patches in (broken, distrust):
+            reads.clear()
+            with contextlib.ExitStack() as stack:
+                for patch in patches:
+                    stack.enter_context(patch)
+                slow, warnings = read_arrays()
+            self.assertEqual(reads, ["unavailable", "unavailable"])
+            self.assertEqual(warnings.count("warning"), 1, warnings)
+            self.assertIn("Edit Mode" if patches is broken else blender_memory.DISTRUST_VARIABLE, warnings)
+            self.assertEqual(len(slow), len(fast))
+            for a, b in zip(slow, fast):
+                self.assertTrue(np.array_equal(a, b))

@@ -40,10 +40,10 @@ class _Result:
 class RecordingEngine:
     """What final.render_final calls on a RenderEngine; records the images given to the render window (copies of
     Combined at each update_result and at end_result) and answers test_break with True once `esc_after_updates`
-    partial results were shown, or after `esc_after_seconds` in any case (so that a render that shows none fails
-    the test instead of running for hours)."""
+    partial results were shown, or after `esc_after_seconds` in any case (a hang guard of minutes, so that a render
+    that shows none fails the test instead of running for hours; never reached by a slow machine's render)."""
 
-    def __init__(self, esc_after_updates=None, esc_after_seconds=10.0):
+    def __init__(self, esc_after_updates=None, esc_after_seconds=300.0):
         self.esc_after_updates = esc_after_updates
         self.esc_at = time.perf_counter() + esc_after_seconds
         self.partial_images, self.final_image, self.ended_cancelled = [], None, None

@@ -4,8 +4,10 @@
 // the evaluated mesh's arrays) makes Blender convert the whole BMesh into a Mesh after every move of a few splats, in
 // time proportional to the whole mesh. Walking the BMesh's vertex table here costs a small fraction of that per
 // vertex (docs/benchmarks.md). The add-on (addon/raysplats/blender/mesh_read.py) finds the BMesh through the bmesh module,
-// checks the struct layout below on the mesh at hand against bmesh's own Python API before the first read
-// (compat holds the offsets), and falls back to to_mesh() whenever a check fails.
+// checks the struct layout below, first on a BMesh of known contents and then on the mesh at hand, against bmesh's
+// own Python API before the first read (compat holds the offsets; every read of those checks goes through
+// blender_memory.py, where a wrong address is an error, not a crash), and falls back to to_mesh() whenever a check
+// fails. This function trusts the address and offsets it is given: nothing else may call it.
 //
 // The struct fields read (Blender's source/blender/bmesh/bmesh_class.h(h), unchanged from 2.8 to 5.x):
 //   BMesh  { int totvert, totedge, totloop, totface; ...; char elem_index_dirty, elem_table_dirty; ...;

@@ -190,7 +190,7 @@ TEST(RenderApi, DeterministicRegardlessOfThreads) {
 
 // Cancelling mid-render returns promptly with stats.cancelled; progress is monotonic. The cancel comes once the
 // first sample pass is done (progress reaches 1 / samples; passes are barriers), whatever the machine's load, and
-// "promptly" is bounded loosely (10 s against the minutes of 100000 samples), as a loaded machine stretches it.
+// "promptly" is bounded by that pass's time as measured in this run (below).
 TEST(RenderApi, CancellationStopsPromptly) {
     const GaussianCloud cloud = random_cloud(5, 2000, 1.0f);
     Scene scene;
@@ -202,6 +202,11 @@ TEST(RenderApi, CancellationStopsPromptly) {
     std::atomic<bool> cancelled_at_set{false};
     std::chrono::steady_clock::time_point cancelled_at;
     std::vector<float> progress;
+    // The canceller cancels once the first whole pass is done; the time to it (the BVH build included), measured in
+    // this run under whatever load the machine has, is the reference: the cancel flag is polled per tile, so the
+    // render returns within one pass of the cancel, bounded by 3 for the load changing between the measurements,
+    // plus 1 s for the threads' wake-ups, which do not scale with the pass.
+    const auto started = std::chrono::steady_clock::now();
     std::thread canceller([&] {
         while (latest_progress.load() < 1.0f / float(s.samples))
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -217,7 +222,9 @@ TEST(RenderApi, CancellationStopsPromptly) {
     canceller.join();
     ASSERT_TRUE(cancelled_at_set.load());
     EXPECT_TRUE(f.stats.cancelled);
-    EXPECT_LT(std::chrono::duration<double>(returned_at - cancelled_at).count(), 10.0);
+    const double first_pass = std::chrono::duration<double>(cancelled_at - started).count();
+    EXPECT_LT(std::chrono::duration<double>(returned_at - cancelled_at).count(), 3.0 * first_pass + 1.0)
+        << "one pass took " << first_pass << " s in this run";
     for (std::size_t i = 1; i < progress.size(); ++i) EXPECT_GE(progress[i], progress[i - 1]);
     // The film keeps the sample passes done before the cancel (their values: render_progressive_test), not an empty
     // image.

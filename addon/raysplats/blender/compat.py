@@ -6,6 +6,13 @@ import bpy
 import numpy as np
 
 
+# The newest Blender the test suite runs on (scripts/test.sh, docs/design.md §9); blender_manifest.toml's
+# blender_version_max is one minor version past it. On a newer Blender the facts below that are read out of Blender's
+# memory (the BMesh offsets) are found by probes rather than taken from this table (blender/mesh_read.py).
+NEWEST_TESTED_BLENDER = (5, 3)
+NEWER_THAN_TESTED = tuple(bpy.app.version[:2]) > NEWEST_TESTED_BLENDER
+
+
 def _since(major, minor):
     return bpy.app.version >= (major, minor, 0)
 
@@ -178,7 +185,8 @@ ATTRIBUTE_VALUE_KEY = {"FLOAT": "value", "FLOAT_VECTOR": "vector", "FLOAT_COLOR"
 # In Edit Mode a mesh lives in a BMesh; reading its positions through bpy makes Blender convert the whole BMesh into a
 # Mesh (in time proportional to the whole mesh). blender/mesh_read.py reads them in place instead, at these byte offsets
 # (source/blender/bmesh/bmesh_class.h, .hh from 4.0: the same from 2.8 to 5.x), each checked on the BMesh at hand
-# against bmesh's Python API before its first read; any mismatch falls back to the conversion.
+# against bmesh's Python API before its first read (reading through blender/blender_memory.py, which turns a wrong
+# address into an error); any mismatch falls back to the conversion.
 BMESH_LAYOUT = {
     "totvert": 0, "totloop": 8, "totface": 12,  # BMesh: int totvert, totedge, totloop, totface
     "elem_table_dirty": 29,  # after 7 ints: char elem_index_dirty, elem_table_dirty
@@ -191,7 +199,9 @@ BMESH_LAYOUT = {
 }
 # bmesh's Python objects (source/blender/python/bmesh/bmesh_py_types.h): a Python object header, then BMesh *bm, then
 # (for elements) BMElem *ele. The header is PyObject_VAR_HEAD (3 words) up to 5.1 and PyObject_HEAD (2 words) from 5.2
-# on (measured: 5.1.2 has the BMesh pointer at 24 bytes, 5.2.3 and 5.3.0 at 16; reading the old offset there crashes).
+# on (measured: 5.1.2 has the BMesh pointer at 24 bytes, 5.2.3 and 5.3.0 at 16; reading the old offset unchecked
+# crashed Blender). mesh_read.probe_bmesh_layout checks them on a known BMesh before any read, and on a Blender newer
+# than NEWEST_TESTED_BLENDER searches the other candidates too.
 _BPY_HEADER = 2 * 8 if _since(5, 2) else 3 * 8
 BPY_BMESH_POINTER_OFFSET = _BPY_HEADER
 BPY_BMELEM_POINTER_OFFSET = _BPY_HEADER + 8

@@ -4,10 +4,11 @@
 # not only Gaussian meshes: objects/polygon_mesh.py builds on these; nothing here knows the Gaussian attribute schema.
 import ctypes
 
+import bpy
 import numpy as np
 
 from .. import native
-from . import compat
+from . import blender_memory, compat
 
 _WIDTH_OF = {"FLOAT": 1, "FLOAT2": 2, "FLOAT_VECTOR": 3, "FLOAT_COLOR": 4}
 # The AttributeGroup data property that holds an attribute's values, by data type (foreach_get/foreach_set).
@@ -80,12 +81,13 @@ def _field_view(elements, stride, offset, value_of):
     if stride % 4 or offset % 4 or offset + 4 > stride or elements[1].as_pointer() - first != stride \
             or elements[count - 1].as_pointer() - first != (count - 1) * stride:
         return None
-    raw = np.frombuffer((ctypes.c_char * (count * stride)).from_address(first), dtype=np.uint32)
-    view = raw.reshape((count, stride // 4))[:, offset // 4]
+    # The spot checks read through blender_memory (an address that is not Blender's array gives an error, not a
+    # crash); the first and the last element among them, so that the view below spans checked memory only.
     spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
-    if any(value_of(elements[int(i)]) != int(view[i]) for i in spots):
+    if any(value_of(elements[int(i)]) != blender_memory.uint32_at(first + int(i) * stride + offset) for i in spots):
         return None
-    return view
+    raw = np.frombuffer((ctypes.c_char * (count * stride)).from_address(first), dtype=np.uint32)
+    return raw.reshape((count, stride // 4))[:, offset // 4]
 
 
 def _loop_vertex_view(loops):
@@ -112,6 +114,8 @@ def read_corner_vertices(mesh, out):
             np.copyto(out, view.view(out.dtype))
             return "pointer"
         _loop_layout_failed = True
+        blender_memory.warn_fallback("Reading a mesh's corners",
+                                     "its loop array is not laid out as compat.LOOP_STRIDE says")
     mesh.loops.foreach_get("vertex_index", out)
     return "foreach_get"
 
@@ -155,6 +159,8 @@ def read_face_corners(mesh, sizes=None, starts=None):
                     np.copyto(out, view.view(np.int32))
             return "pointer"
         _face_layout_failed = True
+        blender_memory.warn_fallback("Reading a mesh's faces",
+                                     "its face array is not laid out as compat.FACE_STRIDE says")
     for out, name in ((starts, "loop_start"), (sizes, "loop_total")):
         if out is not None:
             mesh.polygons.foreach_get(name, out)
@@ -212,8 +218,9 @@ def write_bytes_in_place(elements, values):
     """Copies `values` (count x 4 uint8) straight into the array behind the bpy collection `elements` (a byte colour
     attribute's data: r, g, b, a bytes per element, as Blender 3.4 to 5.x store them) without the float array
     foreach_set would need (16 bytes a corner). Checks first that the elements are 4 bytes apart and span exactly the
-    values, and after the copy that the values read back through RNA (color_srgb) are the ones written. False (nothing
-    trustworthy written: the caller writes through foreach_set) when a check fails."""
+    values and that the bytes there, read safely, are the colours RNA (color_srgb) reports; after the copy, that the
+    values read back through RNA are the ones written. False (nothing trustworthy written: the caller writes through
+    foreach_set) when a check fails."""
     count = len(elements)
     if count != len(values) or values.dtype != np.uint8 or values.shape[1:] != (4,):
         return False
@@ -224,9 +231,13 @@ def write_bytes_in_place(elements, values):
         if count > 1 and (elements[1].as_pointer() - first != 4 or elements[count - 1].as_pointer() - first
                           != 4 * (count - 1)):
             return False
+        spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
+        for i in spots:  # (the first and the last element among them: the copy stays within checked memory)
+            now = np.frombuffer(blender_memory.read(first + 4 * int(i), 4), dtype=np.uint8)
+            if not np.allclose(tuple(elements[int(i)].color_srgb), now / 255.0, atol=1e-6):
+                return False
         np.copyto(np.frombuffer((ctypes.c_char * (4 * count)).from_address(first), dtype=np.uint8),
                   np.ascontiguousarray(values).reshape(-1))
-        spots = np.linspace(0, count - 1, _SPOT_CHECKS).astype(np.int64)
         return all(np.allclose(tuple(elements[int(i)].color_srgb), values[i] / 255.0, atol=1e-6) for i in spots)
     except Exception:  # the fast path is only an optimisation: foreach_set still writes
         return False
@@ -236,26 +247,30 @@ def write_bytes_in_place(elements, values):
 # In Edit Mode the evaluated mesh wraps the edit BMesh; reading its arrays through bpy, or obj.to_mesh(), makes Blender
 # convert the whole BMesh into a Mesh, in time proportional to the whole mesh after every move of a few splats
 # (docs/benchmarks.md). The native core walks the BMesh's vertex and face tables in place instead
-# (read_edit_mesh_positions, at the byte offsets compat.BMESH_LAYOUT gives), once its layout has been checked
-# here on the BMesh at hand against bmesh's own Python API. Only the positions are read: the topology must be the one
-# the caller had (checked corner by corner), and face attributes are taken as unchanged (Edit Mode's tools move
-# vertices; an attribute set in Edit Mode reaches the render when Edit Mode is left).
+# (read_edit_mesh_positions, at the byte offsets compat.BMESH_LAYOUT gives). Nothing is read there before two checks,
+# each reading through blender_memory (a wrong address is an error, not a crash) and comparing with bmesh's own Python
+# API: the probe, once a session, on a small BMesh of known contents (every field the native reader uses, and where
+# bmesh's Python objects hold their pointers); then each BMesh at hand, on a few of its elements. Only the positions are
+# read: the topology must be the one the caller had (checked corner by corner), and face attributes are taken as
+# unchanged (Edit Mode's tools move vertices; an attribute set in Edit Mode reaches the render when Edit Mode is left).
 _bmesh_layout_failed = False  # a check failed once: this Blender lays its BMesh out otherwise; do not look again
 _bmesh_checked = set()  # addresses of the BMeshes whose layout was checked (a new one each time Edit Mode is entered)
+_bmesh_offsets = None  # what the probe found: (BMesh pointer, element pointer) offsets in bmesh's Python objects
 
 
 def _pointer_at(address):
-    return ctypes.c_void_p.from_address(address).value or 0
+    return blender_memory.pointer_at(address)
 
 
 def _int_at(address):
-    return ctypes.c_int.from_address(address).value
+    return blender_memory.int_at(address)
 
 
-def _bmesh_layout_holds(bm, address):
+def _bmesh_layout_holds(bm, address, element):
     """True when the BMesh at `address` (bmesh's `bm`, element tables ensured) is laid out as BMESH_LAYOUT says: its
     counts, and for a few vertices and faces their table entries, indices, positions, face sizes and loop links, match
-    what bmesh's Python API says. Only addresses that the previous checks vouched for are read."""
+    what bmesh's Python API says. `element`: the offset of the element pointer in bmesh's element objects. Every read
+    is a safe one (MemoryUnreadable for an address that is not mapped)."""
     layout = compat.BMESH_LAYOUT
     if (_int_at(address + layout["totvert"]), _int_at(address + layout["totface"])) != (len(bm.verts), len(bm.faces)):
         return False
@@ -265,14 +280,13 @@ def _bmesh_layout_holds(bm, address):
     if not vtable or not ftable or _int_at(address + layout["vtable_tot"]) < len(bm.verts) \
             or _int_at(address + layout["ftable_tot"]) < len(bm.faces):
         return False
-    element = compat.BPY_BMELEM_POINTER_OFFSET
     for i in np.linspace(0, len(bm.verts) - 1, _SPOT_CHECKS).astype(np.int64):
         vert = bm.verts[int(i)]
         pointer = _pointer_at(vtable + 8 * int(i))
         if pointer == 0 or pointer != _pointer_at(id(vert) + element) \
                 or _int_at(pointer + layout["elem_index"]) != vert.index:
             return False
-        if tuple((ctypes.c_float * 3).from_address(pointer + layout["vert_co"])) != tuple(vert.co):
+        if blender_memory.floats_at(pointer + layout["vert_co"], 3) != tuple(vert.co):
             return False
     for j in np.linspace(0, len(bm.faces) - 1, _SPOT_CHECKS).astype(np.int64):
         face = bm.faces[int(j)]
@@ -290,29 +304,99 @@ def _bmesh_layout_holds(bm, address):
     return True
 
 
+def _bmesh_offset_candidates():
+    """(BMesh pointer, element pointer) offsets to try in bmesh's Python objects: compat's on a Blender that was
+    tested; on a newer one also every other word of the first 64 bytes (the object header changed size once, in
+    5.2), the element pointer always the word after the BMesh pointer (BPy_BMElem: header, BMesh *bm, BMElem *ele)."""
+    table = (compat.BPY_BMESH_POINTER_OFFSET, compat.BPY_BMELEM_POINTER_OFFSET)
+    if not compat.NEWER_THAN_TESTED:
+        return [table]
+    return [table] + [(offset, offset + 8) for offset in range(8, 64, 8) if offset != table[0]]
+
+
+def _known_bmesh_holds(bm, address, element):
+    """The probe's checks on `bm`, the known BMesh of probe_bmesh_layout, at `address`: _bmesh_layout_holds, the corner
+    count, and the table flags the native reader relies on (clear after ensure_lookup_table, the vertex flag set by a
+    new vertex)."""
+    layout = compat.BMESH_LAYOUT
+    dirty = address + layout["elem_table_dirty"]
+    tables = layout["vert_flag"] | layout["face_flag"]
+    if not _bmesh_layout_holds(bm, address, element) or blender_memory.byte_at(dirty) & tables \
+            or _int_at(address + layout["totloop"]) != sum(len(face.loops) for face in bm.faces):
+        return False
+    bm.verts.new((9.0, 9.0, 9.0))
+    made_dirty = blender_memory.byte_at(dirty) & layout["vert_flag"]
+    bm.verts.ensure_lookup_table()
+    return bool(made_dirty) and not blender_memory.byte_at(dirty) & tables and _bmesh_layout_holds(bm, address, element)
+
+
+def probe_bmesh_layout():
+    """Where bmesh's Python objects hold their pointers, (BMesh pointer offset, element pointer offset), found on a
+    BMesh of known contents (5 vertices, a quad and a triangle) whose every field of compat.BMESH_LAYOUT that the
+    native reader uses reads, safely, as bmesh's Python API reports it; None when no candidate holds or this system
+    cannot read memory safely."""
+    import bmesh
+
+    if not blender_memory.available():
+        return None
+    bm = bmesh.new()
+    try:
+        for k in range(5):
+            bm.verts.new((0.5 * k, 1.0 - 0.25 * k, 0.125 * k * k))
+        bm.verts.ensure_lookup_table()
+        bm.faces.new([bm.verts[k] for k in (0, 1, 2, 3)])
+        bm.faces.new([bm.verts[k] for k in (1, 4, 2)])
+        bm.verts.index_update()
+        bm.faces.index_update()
+        bm.verts.ensure_lookup_table()
+        bm.faces.ensure_lookup_table()
+        for bmesh_offset, element_offset in _bmesh_offset_candidates():
+            try:
+                address = _pointer_at(id(bm) + bmesh_offset)
+                if address and address % 8 == 0 and _known_bmesh_holds(bm, address, element_offset):
+                    return bmesh_offset, element_offset
+            except blender_memory.MemoryUnreadable:
+                continue
+        return None
+    finally:
+        bm.free()
+
+
 def read_edit_mode_positions(mesh, out, corner_vertices, face_corner_start, face_corner_count):
     """Fills `out` (vertices x 3 float32, C-contiguous) with the vertex positions of `mesh` (in Edit Mode) straight from
     its BMesh, when its faces are still exactly the given corner arrays. Returns how it went: "read"; "topology" (the
-    faces changed: read the mesh in full); "unavailable" (not in Edit Mode, or the BMesh is not laid out as expected)."""
-    global _bmesh_layout_failed
+    faces changed: read the mesh in full); "unavailable" (not in Edit Mode, or the BMesh is not laid out as expected,
+    or memory cannot be read safely here: the caller reads through the Python API)."""
+    global _bmesh_layout_failed, _bmesh_offsets
     import bmesh
 
     if _bmesh_layout_failed or not mesh.is_editmode:
         return "unavailable"
+    if _bmesh_offsets is None:
+        try:
+            _bmesh_offsets = probe_bmesh_layout()
+        except Exception:  # the fast path is only an optimisation: the caller reads the mesh in full
+            _bmesh_offsets = None
+        if _bmesh_offsets is None:
+            _bmesh_layout_failed = True
+            blender_memory.warn_fallback("Reading Edit Mode meshes", f"on Blender {bpy.app.version_string} the BMesh "
+                                         "layout probe found no layout that reads as bmesh reports")
+            return "unavailable"
     bm = bmesh.from_edit_mesh(mesh)
     # Clean element tables are what the native read relies on; both calls are free while nothing changed them.
     bm.verts.ensure_lookup_table()
     bm.faces.ensure_lookup_table()
-    address = _pointer_at(id(bm) + compat.BPY_BMESH_POINTER_OFFSET)
-    if address not in _bmesh_checked:
-        try:
-            holds = _bmesh_layout_holds(bm, address)
-        except Exception:  # the fast path is only an optimisation: the caller reads the mesh in full
-            holds = False
-        if not holds:
-            _bmesh_layout_failed = True
-            return "unavailable"
-        _bmesh_checked.add(address)
+    try:
+        address = _pointer_at(id(bm) + _bmesh_offsets[0])
+        holds = address in _bmesh_checked or _bmesh_layout_holds(bm, address, _bmesh_offsets[1])
+    except Exception:  # the fast path is only an optimisation: the caller reads the mesh in full
+        holds = False
+    if not holds:
+        _bmesh_layout_failed = True
+        blender_memory.warn_fallback("Reading Edit Mode meshes",
+                                     f"the BMesh of '{mesh.name}' does not read as bmesh reports it")
+        return "unavailable"
+    _bmesh_checked.add(address)
     core = native.core()
     result = core.read_edit_mesh_positions(address, compat.BMESH_LAYOUT, out, corner_vertices,
                                            face_corner_start, face_corner_count)

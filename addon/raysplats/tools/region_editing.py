@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 
 from .. import errors, native
-from ..blender import compat
+from ..blender import blender_memory, compat
 from ..objects import blender_splats, polygon_mesh, splat_object
 from ..objects.compact_points import REGION_MARK, REMOVED_MARK, region_marks, selected_points
 from ..objects.creation import add_gaussian_object, remove_gaussian_object
@@ -122,15 +122,17 @@ class _PointViews:
         stride = elements[1].as_pointer() - first
         if stride < width * item or stride % item or elements[count - 1].as_pointer() - first != (count - 1) * stride:
             return None
-        size = (count - 1) * stride + width * item
-        buffer = (ctypes.c_char * size).from_address(first)
-        view = np.ndarray((count, width), dtype=dtype, buffer=buffer, strides=(stride, item))
-        for i in np.linspace(0, count - 1, 8).astype(np.int64):  # spot checks against RNA
+        # Spot checks against RNA, read safely (blender_memory: a wrong address is an error, not a crash) before the
+        # view below touches the array; the first and the last element among them, so the view spans checked memory.
+        for i in np.linspace(0, count - 1, 8).astype(np.int64):
             value = getattr(elements[int(i)], key)
             expected = np.array(value if width > 1 else [value], dtype=dtype)
-            if not np.array_equal(view[int(i)], expected, equal_nan=dtype == np.float32):
+            found = np.frombuffer(blender_memory.read(first + int(i) * stride, width * item), dtype=dtype)
+            if not np.array_equal(found, expected, equal_nan=dtype == np.float32):
                 return None
-        return view
+        size = (count - 1) * stride + width * item
+        buffer = (ctypes.c_char * size).from_address(first)
+        return np.ndarray((count, width), dtype=dtype, buffer=buffer, strides=(stride, item))
 
     def gather(self, rows):
         """The Gaussians of points `rows`, as the core's cloud dict."""
