@@ -15,7 +15,9 @@ mkdir -p "$cache"
 log() { echo "windows pythons: $*" >&2; }
 # Maven artifact versions: CPython version - JavaCPP presets version.
 declare -A CPYTHON=([3.11]=3.11.3-1.5.9 [3.13]=3.13.5-1.5.12)
-declare -A NUMPY=([3.11]="numpy<2" [3.13]="numpy")
+# numpy: the last 1.x for 3.11 (as Blender 4.2 to 5.0 bundle); 2.1.3 for 3.13, as numpy 2.2 and newer call a C
+# runtime function (crealf) Debian 12's Wine 8.0 does not implement.
+declare -A NUMPY=([3.11]=1.26.4 [3.13]=2.1.3)
 PYBIND11=2.13.6
 
 # pip of a venv of the system's Python (Debian's python3-venv): it downloads the Windows wheels for another
@@ -27,11 +29,11 @@ pip=$cache/pip-venv/bin/pip
 
 for version in 3.11 3.13; do
   root=$cache/cpython-$version
-  if [[ ! -x $root/python.exe ]]; then
+  if [[ ! -f $root/python.exe ]]; then
     command -v mvn >/dev/null || { log "mvn is missing (scripts/install_deps.sh installs maven)"; exit 1; }
     log "fetching Windows CPython $version from Maven Central"
     tmp=$(mktemp -d)
-    mvn -q -B dependency:copy "-Dartifact=org.bytedeco:cpython:${CPYTHON[$version]}:jar:windows-x86_64" \
+    mvn -q -B -Dstyle.color=never dependency:copy "-Dartifact=org.bytedeco:cpython:${CPYTHON[$version]}:jar:windows-x86_64" \
         "-DoutputDirectory=$tmp" >&2 || { log "mvn could not fetch org.bytedeco:cpython:${CPYTHON[$version]}"; exit 1; }
     (cd "$tmp" && unzip -q ./*.jar 'org/bytedeco/cpython/windows-x86_64/*')
     rm -rf "$root"
@@ -39,11 +41,11 @@ for version in 3.11 3.13; do
     rm -rf "$tmp"
   fi
   site=$cache/site-$version
-  if [[ ! -d $site/numpy ]]; then
-    log "installing ${NUMPY[$version]} for Windows Python $version"
+  if [[ ! -d $site/numpy-${NUMPY[$version]}.dist-info ]]; then
+    log "installing numpy ${NUMPY[$version]} for Windows Python $version"
     rm -rf "$site"
     "$pip" install -q --no-deps --only-binary=:all: --platform win_amd64 --python-version "$version" \
-        --target "$site" "${NUMPY[$version]}" >&2 || { log "pip could not install numpy for Windows Python $version"; exit 1; }
+        --target "$site" "numpy==${NUMPY[$version]}" >&2 || { log "pip could not install numpy for Windows Python $version"; exit 1; }
   fi
 done
 if [[ ! -f $cache/pybind11/include/pybind11/pybind11.h ]]; then
