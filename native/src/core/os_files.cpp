@@ -349,5 +349,13 @@ void write_file_atomically(const std::string& path, const void* data, std::size_
     }
 }
 
+std::size_t last_separator(const std::string& path) noexcept {
+#ifdef _WIN32
+    return path.find_last_of("/\\");
+#else
+    return path.find_last_of('/');
+#endif
+}
+
 }  // namespace os
 }  // namespace raysplats

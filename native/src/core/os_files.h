@@ -94,6 +94,9 @@ void replace_file(const std::string& from, const std::string& to);
 void remove_file(const std::string& path) noexcept;
 // This process's id (unique names of temporary files).
 unsigned long process_id() noexcept;
+// Where the file name in `path` starts after its last folder separator ('/', and on Windows also '\\'), or npos when
+// the path has none. On Linux a backslash is an ordinary character of a file name.
+std::size_t last_separator(const std::string& path) noexcept;
 
 }  // namespace os
 }  // namespace raysplats

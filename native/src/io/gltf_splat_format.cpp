@@ -31,6 +31,7 @@
 #include <functional>
 
 #include "core/linear_algebra.h"
+#include "core/os_files.h"
 #include "io/io_common.h"
 #include "io/splat_formats.h"
 #include "raysplats/gltf_contents.h"
@@ -545,7 +546,7 @@ GaussianCloud read_model(const std::string& name, const tinygltf::Model& model, 
 }
 
 std::string folder_of(const std::string& path) {
-    const std::size_t slash = path.find_last_of('/');
+    const std::size_t slash = os::last_separator(path);
     return slash == std::string::npos ? std::string(".") : path.substr(0, slash);
 }
 

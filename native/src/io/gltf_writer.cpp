@@ -23,6 +23,7 @@
 #include <sstream>
 
 #include "io/io_common.h"
+#include "core/os_files.h"
 #include "io/mesh_writers.h"
 
 namespace raysplats {
@@ -316,7 +317,7 @@ bool is_identity(const double m[16]) {
 }
 
 std::string file_name(const std::string& path) {
-    const std::size_t slash = path.find_last_of('/');
+    const std::size_t slash = os::last_separator(path);
     return slash == std::string::npos ? path : path.substr(slash + 1);
 }
 
@@ -424,7 +425,7 @@ MeshWriteStats write_gltf(const std::string& path, const ExportScene& scene, con
         file.commit();
         stats.bytes = sizeof(header) + json_text.size() + sizeof(bin_header) + buffer_size;
     } else {
-        const std::size_t slash = path.find_last_of('/');
+        const std::size_t slash = os::last_separator(path);
         const std::string stem = file_name(path).substr(0, file_name(path).find_last_of('.'));
         const std::string bin_path = (slash == std::string::npos ? std::string() : path.substr(0, slash + 1)) + stem + ".bin";
         AtomicFileWriter bin_file(bin_path);

@@ -21,6 +21,7 @@
 #include <sstream>
 
 #include "io/io_common.h"
+#include "core/os_files.h"
 #include "io/mesh_writers.h"
 
 namespace raysplats {
@@ -200,7 +201,7 @@ private:
 };
 
 std::string stem_of(const std::string& path) {
-    const std::size_t slash = path.find_last_of('/');
+    const std::size_t slash = os::last_separator(path);
     std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
     const std::size_t dot = name.find_last_of('.');
     return dot == std::string::npos ? name : name.substr(0, dot);
@@ -279,7 +280,7 @@ std::string mtl_number(float v) {
 MeshWriteStats write_obj(const std::string& path, const ExportScene& scene) {
     SceneExporter exporter(scene);
     const std::string stem = stem_of(path);
-    const std::size_t slash = path.find_last_of('/');
+    const std::size_t slash = os::last_separator(path);
     const std::string mtl_path = (slash == std::string::npos ? std::string() : path.substr(0, slash + 1)) + stem + ".mtl";
 
     // Materials: the scene's, plus a default one for parts without a material.

@@ -1,4 +1,5 @@
 #include "io/sog_files.h"
+#include "core/os_files.h"
 
 #include <cerrno>
 #include <cstring>
@@ -54,7 +55,7 @@ private:
 class Folder : public SogFiles {
 public:
     explicit Folder(const std::string& meta_path) : meta_path_(meta_path) {
-        const std::size_t slash = meta_path.find_last_of('/');
+        const std::size_t slash = os::last_separator(meta_path);
         dir_ = slash == std::string::npos ? "" : meta_path.substr(0, slash + 1);
     }
     FileFormatError error(const std::string& name, const std::string& problem) const override {

@@ -12,6 +12,7 @@
 #include <random>
 
 #include "io/io_common.h"
+#include "core/os_files.h"
 #include "io/splat_formats.h"
 #include "raysplats/splat_io.h"
 
@@ -195,7 +196,7 @@ void finalize_cloud(GaussianCloud& c, const ReadOptions& options, LoadReport* re
 }
 
 std::string lower_extension(const std::string& path) {
-    const std::size_t slash = path.find_last_of('/');
+    const std::size_t slash = os::last_separator(path);
     const std::size_t dot = path.find_last_of('.');
     if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
     std::string e = path.substr(dot);
