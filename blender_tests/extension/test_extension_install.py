@@ -25,7 +25,13 @@ def parse_arguments():
     parser.add_argument("--data-dir", required=True)
     parser.add_argument("--tmp-dir", required=True)
     parser.add_argument("--out-dir", help="where the exports and the render's pixels are left for comparison")
-    return parser.parse_args()
+    args = parser.parse_args()
+    # Absolute paths in this system's own form: on Windows (and under Wine) a path given as /tmp/x becomes
+    # Z:\tmp\x here, where Blender would otherwise put its own default drive, C:, in front of it.
+    for key in ("zip", "data_dir", "tmp_dir", "out_dir"):
+        if getattr(args, key):
+            setattr(args, key, os.path.abspath(getattr(args, key)))
+    return args
 
 
 def loaded_libraries():
