@@ -70,7 +70,7 @@ def main(argv=None):
     if args.tiers:
         try:
             with open(args.tiers) as f:
-                tiers = [line.rstrip("\n").split("\t", 1) for line in f if line.strip()]
+                tiers = [line.rstrip("\n").split("\t", 1) for line in dict.fromkeys(f) if line.strip()]
         except FileNotFoundError:
             pass
     passed, failed, skips = summarize(args.junit)
