@@ -48,7 +48,9 @@ def summarize(junit_path, tier_lines=()):
             for inner, reason in SKIP_LINE.findall(output):
                 skips.append((f"{name} > {inner}", reason.strip(), reason.startswith(EXPECTED)))
         elif status == "fail":
-            failed.append(name)
+            # A tier that strict mode failed says which (scripts/lib/tier_not_run.sh).
+            strict = re.search(r"^FAILED \(strict mode\): (.*)$", output, re.M)
+            failed.append(f"{name}: {strict.group(1)}" if strict else name)
         elif status == "disabled":
             # GoogleTest's DISABLED_ tests (gtest_discover_tests marks them) and the DISABLED property: on purpose.
             skips.append((name, "expected: disabled (a DISABLED_ GoogleTest or the DISABLED property)", True))

@@ -192,7 +192,7 @@ class SummaryOfARealCtestRun(unittest.TestCase):
     def test_strict_mode_fails_the_missing_tier_and_the_unexpected_skip(self):
         r = self.summary("strict", "--strict")
         self.assertTrue(r.stdout.startswith("1 passed, 2 failed, 3 skipped"), r.stdout)
-        self.assertIn("  FAILED: t.no_node", r.stdout.splitlines())
+        self.assertIn("  FAILED: t.no_node: tier 't.no_node' was not set up: node not found", r.stdout.splitlines())
         self.assertIn("strict mode: 1 skip(s)", r.stdout)
         self.assertEqual(r.returncode, 1)
 
