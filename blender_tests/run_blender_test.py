@@ -1,13 +1,17 @@
 # Runs one test module inside Blender:
 #   blender -b -noaudio --factory-startup --python-exit-code 1 --python run_blender_test.py -- \
 #       test_x.py --addon-dir addon --data-dir ../shared/data --tmp-dir /tmp/x
-# Registers the add-on from the source tree, runs the module's unittest cases, and raises if any failed so
-# that Blender exits with code 1.
+# Registers the add-on from the source tree and runs the module's unittest cases, reported by
+# scripts/lib/unittest_report.py: each skip with its reason and the counts. Blender's exit code is 1 when a test
+# failed (or none ran) and 77, a skip for ctest, when every test skipped.
 import argparse
 import importlib.util
 import os
 import sys
 import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts", "lib"))
+import unittest_report  # noqa: E402
 
 
 def main():
@@ -45,15 +49,13 @@ def main():
         for case in cases:
             setattr(case, name, unittest.expectedFailure(getattr(case, name)))
     try:
-        result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+        code = unittest_report.run(suite)
     finally:
         # Blender-as-a-module (PyPI bpy) crashes at interpreter exit while add-on classes are still
         # registered, as Blender itself would unregister them on quit; do it here.
         raysplats.unregister()
-    print(f"{result.testsRun - len(result.failures) - len(result.errors)} passed, "
-          f"{len(result.failures) + len(result.errors)} failed")
-    if not result.wasSuccessful() or result.testsRun == 0:
-        raise SystemExit(1)
+    if code:
+        raise SystemExit(code)
 
 
 main()

@@ -159,7 +159,7 @@ class Batch(unittest.TestCase):
 
     def test_works_from_an_installed_addon(self):
         if not bpy.app.binary_path or "python" in os.path.basename(bpy.app.binary_path).lower():
-            self.skipTest("needs the Blender executable (user script folders)")
+            self.skipTest("expected: needs the Blender executable (user script folders), not bpy as a module")
         # The add-on as scripts/install_addon.sh installs it: a link in <user scripts>/addons.
         scripts = fresh_dir("batch_user_scripts")
         os.makedirs(os.path.join(scripts, "addons"))

@@ -80,7 +80,7 @@ class CompatFacts(unittest.TestCase):
 
     def test_point_cloud_resize_probe_matches_what_python_can_do(self):
         if not hasattr(bpy.types, "PointCloud"):
-            self.skipTest("this Blender has no PointCloud type")
+            self.skipTest("expected: this Blender has no PointCloud type")
         data = bpy.data.pointclouds.new("probe")
         try:
             try:
@@ -94,7 +94,7 @@ class CompatFacts(unittest.TestCase):
 
     def test_splat_type_probe_matches_what_a_point_cloud_takes(self):
         if not hasattr(bpy.types, "PointCloud"):
-            self.skipTest("this Blender has no PointCloud type")
+            self.skipTest("expected: this Blender has no PointCloud type")
         data = bpy.data.pointclouds.new("probe")
         try:
             if compat.HAS_NATIVE_GAUSSIAN_SPLATS:

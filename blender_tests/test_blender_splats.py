@@ -27,7 +27,7 @@ FORMATS = (".ply", ".spz", ".splat", ".compressed.ply")
 
 needs_splat_point_clouds = unittest.skipUnless(
     compat.HAS_NATIVE_GAUSSIAN_SPLATS,
-    f"Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3 on)")
+    f"expected: Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3 on)")
 
 
 def blender_import(name=SCENE):

@@ -225,7 +225,7 @@ class RenderEngine(unittest.TestCase):
         self.assertGreater(left.sum(), 1.0, "the lattice-deformed splats must change between frames")
         self.assertEqual(float(right.sum()), 0.0, "the untouched splats must render identically")
 
-    @unittest.skipIf(not bpy.app.binary_path, "Blender as a Python module has no command line")
+    @unittest.skipIf(not bpy.app.binary_path, "expected: Blender as a Python module has no command line")
     def test_headless_command_line_render(self):
         scene = new_scene(width=64, height=48, samples=2)
         st.set_world_color(scene.world, (0.1, 0.2, 0.3))

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Makes (once, cached) a venv with an official Blender build as a Python module (PyPI `bpy`) so that the
 # Blender tests also run on the Blender versions users have (docs/design.md §9). Prints the venv's python on
-# success. When PyPI cannot be reached or has no such bpy, it says so on stderr, prints nothing and exits 0,
-# so that the other Blender tests still run.
+# success. When PyPI cannot be reached or has no such bpy, it says so on stderr, prints nothing and exits 0
+# (scripts/test.sh then fails under strict mode, or leaves that Blender out and says so in its summary).
 #   scripts/setup_bpy.sh VERSION [venv-dir]      VERSION: 4.2, 4.5, 5.0, 5.2, 5.3 (a Blender major.minor)
 # The newest release of that major.minor is installed (e.g. 5.2 -> 5.2.3, the newest 5.2 LTS).
 # The venv is ~/.cache/raysplats/bpy<major><minor>-venv (e.g. bpy42-venv) unless venv-dir is given.
@@ -28,13 +28,13 @@ if [[ $version =~ ^([0-9]+)\.([0-9]+)$ ]] && (( BASH_REMATCH[1] * 100 + BASH_REM
   numpy=numpy
   if [[ -z $interpreter ]]; then
     echo "setup_bpy: Blender $version needs Python 3.13 and none was found (python3.13 on PATH, ~/.pyenv/versions/3.13*," \
-         "or RAYSPLATS_PYTHON313); Blender $version tests skipped" >&2
+         "or RAYSPLATS_PYTHON313); Blender $version tests are not run" >&2
     exit 0
   fi
 fi
-"$interpreter" -m venv "$venv" >&2 || { echo "setup_bpy: could not make a venv in $venv; Blender $version tests skipped" >&2; exit 0; }
+"$interpreter" -m venv "$venv" >&2 || { echo "setup_bpy: could not make a venv in $venv; Blender $version tests are not run" >&2; exit 0; }
 if ! "$venv/bin/pip" install -q "bpy==$version.*" "$numpy" >&2; then
-  echo "setup_bpy: bpy $version not installed (PyPI unreachable?); Blender $version tests skipped" >&2
+  echo "setup_bpy: bpy $version not installed (PyPI unreachable?); Blender $version tests are not run" >&2
   exit 0
 fi
 echo "$venv/bin/python"

@@ -15,5 +15,19 @@ cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=Debug -DRAYSPL
   -DRAYSPLATS_BLENDER_TESTS=OFF >/dev/null
 cmake --build "$build" -j "$(nproc)" --target raysplats_render_gaussian_tests
 tests=$build/native/tests/raysplats_render_gaussian_tests
-filter='RenderGaussian.SingleGaussianHeadOnAlphaIsExact:RenderGaussian.SortedGatherEqualsBruteForce:RenderGaussian.FlatAndVolumetricDifferObliquely'
-"$tests" --gtest_filter="$filter" --gtest_brief=1
+# The tests it runs, by name: a filter that matches fewer (one renamed, one removed) must fail, not pass on nothing.
+names=(RenderGaussian.SingleGaussianHeadOnAlphaIsExact RenderGaussian.SortedGatherEqualsBruteForce
+       RenderGaussian.FlatAndVolumetricDifferObliquely)
+filter=$(IFS=:; echo "${names[*]}")
+# --gtest_list_tests prints each suite ("Suite.") and then its tests indented.
+listed=$("$tests" --gtest_filter="$filter" --gtest_list_tests | awk '/^[^ ]/ { suite = $1 } /^  / { print suite $1 }')
+for name in "${names[@]}"; do
+  grep -qx "$name" <<<"$listed" || { echo "test_debug_build: no test $name in $tests (renamed?)" >&2; exit 1; }
+done
+# Every one of them ran and passed (a skip is not a pass here).
+"$root/scripts/lib/run_gtest.py" "$tests" --gtest_filter="$filter" --gtest_brief=1 | tee "$build/debug-tests.txt"
+summary=$(tail -n 1 "$build/debug-tests.txt")
+if [[ $summary != "${#names[@]} passed, 0 failed, 0 skipped" ]]; then
+  echo "test_debug_build: expected ${#names[@]} tests to pass, got: $summary" >&2
+  exit 1
+fi

@@ -86,7 +86,7 @@ class BlendTravels(unittest.TestCase):
     def test_blender_made_splats(self):
         from raysplats.blender import compat
         if not compat.HAS_NATIVE_GAUSSIAN_SPLATS:
-            self.skipTest(f"Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3+)")
+            self.skipTest(f"expected: Blender {bpy.app.version_string} has no Gaussian-splat point clouds (5.3+)")
         obj = self.travel("blender_splats", blender_import=True)
         self.assertEqual(obj.type, "POINTCLOUD")
         self.assertGreater(len(obj.data.points), 9000)

@@ -1,8 +1,13 @@
 # The bindings' conversion layer, through the built module with the Python Blender embeds (no Blender needed):
 # wrong input is an error with one wording, and the dicts take exactly the core's names.
 #   python3 test_conversions.py DIRECTORY_OF_THE_MODULE
+import os
 import sys
 import unittest
+
+# The test command's reporting: skips counted and named, exit 77 (a skip for ctest) when every test skipped.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts", "lib"))
+import unittest_report  # noqa: E402
 
 import numpy as np
 
@@ -139,4 +144,4 @@ class Conversions(unittest.TestCase):
 
 
 if __name__ == "__main__":
-    unittest.main(argv=sys.argv[:1])
+    unittest_report.main()

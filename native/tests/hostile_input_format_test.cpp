@@ -55,7 +55,7 @@ long status_kb(const char* field) {
 // memory grew while reading it.
 TEST(HostileInputChild, DISABLED_ReadOneFile) {
     const char* path = std::getenv(kFileVariable);
-    if (!path) GTEST_SKIP() << "run by HostileInput tests only";
+    if (!path) GTEST_SKIP() << "expected: run by HostileInput tests only";
     if (!kAddressSanitizer) {
         rlimit limit{};
         limit.rlim_cur = limit.rlim_max = rlim_t(4) << 30;  // 4 GB of address space: a runaway allocation throws

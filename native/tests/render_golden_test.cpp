@@ -12,7 +12,9 @@
 //   FilmsUnderOtherInstructionSetsAgree.
 // - The CPU's approximate reciprocal (RCPPS, the start of that Newton step): its table is the vendor's, so the bits
 //   differ between CPU families even under one instruction set. The key carries a hash of RCPPS over its whole
-//   input range (rcp_family()); a family with no recorded films renders and checks everything else and says so.
+//   input range (rcp_family()). A family with no recorded films at all renders and checks everything else and skips
+//   the comparison, saying which family and how to record it; a recorded family never skips (a hash it lacks is a
+//   failure), and a golden file that is missing, unreadable or malformed is a failure naming it.
 // - The group test's SIMD path (AVX2 + FMA or SSE; RAYSPLATS_SIMD=sse), the compiler and libm.
 // To record (only when a change of the images is intended, and say so in the commit):
 //   RAYSPLATS_UPDATE_GOLDEN=1 build/native/tests/raysplats_tests --gtest_filter=RenderGolden.*
@@ -21,6 +23,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -28,6 +31,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -63,13 +67,43 @@ std::map<std::string, std::uint64_t> film_hashes(const Film& f) {
     return h;
 }
 
-std::map<std::string, std::string> read_golden() {
-    std::map<std::string, std::string> golden;
-    std::ifstream in(kGoldenFile);
-    std::string key, value;
-    while (in >> key >> value) golden[key] = value;
+const char* const kChannels[] = {"alpha", "depth", "normal", "rgba"};
+
+// The recorded hashes (key -> 16 hex digits), or why they cannot be had: a file that cannot be opened, holds no hash
+// or has a line that is not "key hash" is an error naming it, never a reason to check nothing.
+struct GoldenFile {
+    std::map<std::string, std::string> hashes;
+    std::string error;
+};
+
+GoldenFile read_golden(const std::string& file = kGoldenFile) {
+    GoldenFile golden;
+    std::ifstream in(file);
+    if (!in) {
+        golden.error = "cannot open the golden films file " + file + ": " + std::strerror(errno);
+        return golden;
+    }
+    std::string line;
+    for (int number = 1; std::getline(in, line); ++number) {
+        if (line.empty()) continue;
+        std::istringstream fields(line);
+        std::string key, value, extra;
+        if (!(fields >> key >> value) || (fields >> extra) || value.size() != 16 ||
+            value.find_first_not_of("0123456789abcdef") != std::string::npos) {
+            golden.error = file + ":" + std::to_string(number) + ": not a golden film line (key, 16 hex digits): " + line;
+            return golden;
+        }
+        golden.hashes[key] = value;
+    }
+    if (in.bad()) golden.error = "cannot read the golden films file " + file;
+    else if (golden.hashes.empty()) golden.error = "the golden films file " + file + " holds no hashes";
     return golden;
 }
+
+// Whether a CPU family's films under one group test path can be compared: every case's every channel recorded
+// (Recorded), none of the family recorded under any path (FamilyNotRecorded: the only reason to skip), or the family
+// recorded but some of these hashes missing (Incomplete: a failure). `missing` receives the keys not recorded.
+enum class GoldenCoverage { Recorded, FamilyNotRecorded, Incomplete };
 
 void write_golden(const std::map<std::string, std::string>& golden) {
     std::ofstream out(kGoldenFile, std::ios::trunc);
@@ -222,6 +256,20 @@ const GoldenCase kCases[] = {
      GaussianMode::Volumetric, false, false, 96, true, 0, GaussianShading::Baked, BlendSpace::Display},
 };
 
+GoldenCoverage golden_coverage(const std::map<std::string, std::string>& hashes, const std::string& family,
+                               const std::string& group_path, std::vector<std::string>* missing) {
+    bool family_recorded = false;
+    for (const auto& [key, value] : hashes) family_recorded |= key.rfind(family + "/", 0) == 0;
+    if (!family_recorded) return GoldenCoverage::FamilyNotRecorded;
+    missing->clear();
+    for (const GoldenCase& gc : kCases)
+        for (const char* channel : kChannels) {
+            const std::string key = family + "/" + group_path + "/" + gc.name + "/" + channel;
+            if (!hashes.count(key)) missing->push_back(key);
+        }
+    return missing->empty() ? GoldenCoverage::Recorded : GoldenCoverage::Incomplete;
+}
+
 Film render_case(const GoldenScene& gs, const GoldenCase& gc, const std::string& embree_config, int width = 64,
                  int height = 48) {
     Scene scene(embree_config);
@@ -262,12 +310,21 @@ Film render_case(const GoldenScene& gs, const GoldenCase& gc, const std::string&
 }  // namespace
 
 TEST(RenderGolden, FilmsAreBitIdenticalToTheRecordedOnes) {
-    const GoldenScene scene;
-    const std::string path = std::string("sse4.2-rcp") + rcp_family() + "/" + gaussian_group_test_path();
     const bool update = std::getenv("RAYSPLATS_UPDATE_GOLDEN") != nullptr;
-    std::map<std::string, std::string> golden = read_golden();
-    bool path_recorded = false;
-    for (const auto& [key, value] : golden) path_recorded |= key.rfind(path + "/", 0) == 0;
+    GoldenFile recorded = read_golden();
+    if (!update) ASSERT_EQ(recorded.error, "") << "the golden films cannot be checked";
+    std::map<std::string, std::string>& golden = recorded.hashes;
+    const std::string family = std::string("sse4.2-rcp") + rcp_family();
+    const std::string path = family + "/" + gaussian_group_test_path();
+    std::vector<std::string> missing;
+    const GoldenCoverage coverage = golden_coverage(golden, family, gaussian_group_test_path(), &missing);
+    if (!update)
+        ASSERT_NE(coverage, GoldenCoverage::Incomplete)
+            << kGoldenFile << " has films of this CPU's family " << family << " but not " << missing.size()
+            << " of its " << gaussian_group_test_path() << " group test's hashes, e.g. " << missing.front()
+            << "; record them (see the header of " << __FILE__ << ")";
+    const bool compare = !update && coverage == GoldenCoverage::Recorded;
+    const GoldenScene scene;
     for (const GoldenCase& gc : kCases) {
         const Film film = render_case(scene, gc, kGoldenIsa);
         if (const char* dir = std::getenv("RAYSPLATS_GOLDEN_PNG")) film.write_png(std::string(dir) + "/" + gc.name + ".png");
@@ -284,15 +341,64 @@ TEST(RenderGolden, FilmsAreBitIdenticalToTheRecordedOnes) {
             const std::string key = path + "/" + gc.name + "/" + channel;
             if (update) {
                 golden[key] = hex(h);
-            } else if (path_recorded) {
-                ASSERT_TRUE(golden.count(key)) << "no recorded hash for " << key;
-                EXPECT_EQ(golden[key], hex(h)) << key << " changed";
+            } else if (compare) {
+                EXPECT_EQ(golden.at(key), hex(h)) << key << " changed";
             }
         }
     }
     if (update) write_golden(golden);
-    if (!update && !path_recorded)
-        GTEST_SKIP() << "no golden films recorded for " << path << " (this CPU's family and group test)";
+    if (!update && coverage == GoldenCoverage::FamilyNotRecorded) {
+        std::set<std::string> families;
+        for (const auto& [key, value] : golden) families.insert(key.substr(0, key.find('/')));
+        std::string recorded_families;
+        for (const std::string& f : families) recorded_families += (recorded_families.empty() ? "" : ", ") + f;
+        GTEST_SKIP() << "expected: this CPU's approximate-reciprocal family " << family << " has no golden films in "
+                     << kGoldenFile << " (recorded: " << recorded_families << "); the films were rendered and checked "
+                     << "for content, not compared. To record this family: RAYSPLATS_UPDATE_GOLDEN=1 "
+                     << "build/native/tests/raysplats_tests --gtest_filter=RenderGolden.FilmsAreBitIdenticalToTheRecordedOnes"
+                     << ", then the same with RAYSPLATS_SIMD=sse, and commit the file";
+    }
+}
+
+// The golden file's own failures are failures: a missing, unreadable or malformed file names itself.
+TEST(RenderGolden, AMissingOrMalformedGoldenFileIsAnErrorNamingIt) {
+    const std::string missing = std::string(RAYSPLATS_TEST_TMP) + "/no_such_golden_films.txt";
+    std::remove(missing.c_str());
+    EXPECT_NE(read_golden(missing).error.find(missing), std::string::npos);
+    EXPECT_NE(read_golden(RAYSPLATS_TEST_TMP).error.find(RAYSPLATS_TEST_TMP), std::string::npos) << "a folder";
+    const std::string malformed = std::string(RAYSPLATS_TEST_TMP) + "/malformed_golden_films.txt";
+    std::ofstream(malformed) << "sse4.2-rcp00000000/sse/case/rgba 0123456789abcdef\nnot-a-hash\n";
+    EXPECT_NE(read_golden(malformed).error.find(malformed + ":2:"), std::string::npos) << read_golden(malformed).error;
+    std::ofstream(malformed, std::ios::trunc) << "";
+    EXPECT_NE(read_golden(malformed).error.find("holds no hashes"), std::string::npos);
+    EXPECT_EQ(read_golden().error, "");
+}
+
+// The comparison skips only for a CPU family with no films at all: every recorded family has every hash under both
+// group tests, a family with one group test recorded fails on the other rather than skipping, and on a CPU whose
+// family is recorded the comparison runs.
+TEST(RenderGolden, ARecordedFamilyIsComparedNeverSkipped) {
+    const GoldenFile golden = read_golden();
+    ASSERT_EQ(golden.error, "");
+    std::set<std::string> families;
+    for (const auto& [key, value] : golden.hashes) families.insert(key.substr(0, key.find('/')));
+    ASSERT_FALSE(families.empty());
+    std::vector<std::string> missing;
+    for (const std::string& family : families)
+        for (const char* group_path : {"avx2", "sse"})
+            EXPECT_EQ(golden_coverage(golden.hashes, family, group_path, &missing), GoldenCoverage::Recorded)
+                << family << "/" << group_path << " lacks " << missing.size() << " hashes";
+    const std::string first = *families.begin();
+    std::map<std::string, std::string> one_path;
+    for (const auto& [key, value] : golden.hashes)
+        if (key.rfind(first + "/avx2/", 0) == 0) one_path[key] = value;
+    EXPECT_EQ(golden_coverage(one_path, first, "sse", &missing), GoldenCoverage::Incomplete);
+    EXPECT_EQ(missing.size(), std::size(kCases) * std::size(kChannels));
+    EXPECT_EQ(golden_coverage(one_path, "sse4.2-rcpffffffff", "sse", &missing), GoldenCoverage::FamilyNotRecorded);
+    const std::string family = std::string("sse4.2-rcp") + rcp_family();
+    if (families.count(family))
+        EXPECT_EQ(golden_coverage(golden.hashes, family, gaussian_group_test_path(), &missing),
+                  GoldenCoverage::Recorded);
 }
 
 // How far a film is from the reference film of the same case: per pixel the difference is the largest of |d rgba| and
