@@ -50,14 +50,15 @@ fi
 # The Windows tier (ctest label windows): the module and zip cross-built for Windows x64 and tested in Windows'
 # Python and Blender 4.2 for Windows under Wine (docs/building.md). The first run builds the dependencies from Debian's
 # sources into ~/.cache/raysplats/windows; RAYSPLATS_TEST_WINDOWS=0 leaves the tier out.
-windows=()
-if [[ ${RAYSPLATS_TEST_WINDOWS:-1} != 0 ]]; then
-  windows_build=$("$root/scripts/windows/build.sh" "$root/build-windows")
-  windows_cache=$("$root/scripts/windows/setup_pythons.sh")
-  windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
+windows=(-DRAYSPLATS_WINDOWS_BUILD= -DRAYSPLATS_WINDOWS_BLENDER_SITE=)
+if [[ ${RAYSPLATS_TEST_WINDOWS:-1} == 0 ]]; then
+  tier_unavailable "Windows" "RAYSPLATS_TEST_WINDOWS=0 left it out" || exit 1
+elif ! windows_build=$("$root/scripts/windows/build.sh" "$root/build-windows"); then
+  tier_unavailable "Windows" "scripts/windows/build.sh could not cross-build the module (its reason is above)" || exit 1
+elif ! windows_cache=$("$root/scripts/windows/setup_pythons.sh"); then
+  tier_unavailable "Windows" "scripts/windows/setup_pythons.sh could not set up Windows' Pythons (above)" || exit 1
 else
-  echo "test.sh: RAYSPLATS_TEST_WINDOWS=0: the Windows tier is NOT run" >&2
-  windows=(-DRAYSPLATS_WINDOWS_BUILD= -DRAYSPLATS_WINDOWS_BLENDER_SITE=)
+  windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
 fi
 "$root/scripts/build.sh" "$root/build" "-DRAYSPLATS_BPY_PYTHONS=$(IFS=';'; echo "${bpy_pythons[*]}")" \
   -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313" "${windows[@]}"
