@@ -5,6 +5,7 @@
 # Reading: the real SuperSplat file must read as this decoder says, within float rounding. Writing: `raysplats convert`
 # of a trained INRIA .ply to .compressed.ply must decode (here) to the input within the format's quantisation.
 import os
+import shutil
 import subprocess
 import sys
 import unittest
@@ -137,6 +138,25 @@ class CompressedPly(unittest.TestCase):
         print(f"write -> read, largest errors: position {pos_err.max():.2e}, log scale {log_err.max():.2e}, "
               f"colour {colour_err.max():.2e}, opacity {np.abs(written['opacities'] - o['opacities']).max():.2e}, "
               f"rotation 1-|dot| {(1 - dot).max():.2e}, f_rest {rest_err.max():.2e}")
+
+    def test_cli_converts_under_a_foreign_name_in_the_systems_path_form(self):
+        # The command line as a user types it: absolute paths with a drive letter and backslashes on Windows, names no
+        # code page holds (on Windows the arguments arrive as UTF-16), and a second run over the first run's file.
+        def native_form(path):
+            path = os.path.abspath(path)
+            return path.replace("/", "\\") if sys.platform == "win32" else path
+
+        folder = os.path.join(TMP_DIR, "cli Ünïcødé 日本語 \U0001F642")
+        shutil.rmtree(folder, ignore_errors=True)
+        os.makedirs(folder)
+        name = "spläts Ελληνικά \U0001F642.spz"
+        source = os.path.join(DATA_DIR, "small_sh3_inria.ply")
+        for attempt in range(2):
+            subprocess.run([CLI, "convert", native_form(source), native_form(os.path.join(folder, name))], check=True,
+                           capture_output=True)
+        self.assertEqual(os.listdir(folder), [name])
+        back = _native.read_splats(os.path.join(folder, name))
+        self.assertEqual(len(back["opacities"]), _native.probe_splat_file(source)["count"])
 
 
 if __name__ == "__main__":
