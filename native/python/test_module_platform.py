@@ -182,12 +182,18 @@ class Platform(unittest.TestCase):
         camera = np.eye(4, dtype=np.float32)
         camera[:3, 3] = centre + np.array([0.0, 0.0, 3.0 * size])
         # 61 x 45: not a multiple of any packet's width or height, so edge packets have inactive lanes.
-        job = _native.RenderJob(scene, {"matrix": camera}, {"width": 61, "height": 45, "samples": 4, "seed": 7})
-        while not job.wait(1.0):
-            pass
-        film = job.result()
-        rgba = np.asarray(film["rgba"] if isinstance(film, dict) else film)
+        def render(**threads):
+            job = _native.RenderJob(scene, {"matrix": camera}, {"width": 61, "height": 45, "samples": 4, "seed": 7},
+                                    **threads)
+            while not job.wait(1.0):
+                pass
+            film = job.result()
+            return np.asarray(film["rgba"] if isinstance(film, dict) else film)
+
+        rgba = render()
         self.assertGreater(float(rgba[..., 3].mean()), 0.2, "the render is nearly empty")
+        # One thread at lowered priority (the system's own call for it) gives the film all cores give.
+        np.testing.assert_array_equal(render(max_threads=1, below_normal_priority=True), rgba)
         np.save(os.path.join(OUT_DIR, "render_rgba.npy"), rgba.astype(np.float32))
         with open(os.path.join(OUT_DIR, "render_device.txt"), "w", newline="\n") as out:
             out.write(f"{scene.embree_device}\n")
