@@ -51,6 +51,15 @@ def place(obj, location=(0.4, -1.2, 0.3), rotation=(0.3, -0.9, 0.6), scale=(1.5,
     bpy.context.view_layer.update()
 
 
+def add_camera(scene):
+    """The camera the render comparisons share: 7 units back, looking at the placed Gaussians."""
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, -7.0, 1.0)
+    camera.rotation_euler = (1.45, 0.0, 0.0)
+    scene.camera = camera
+
+
 def assert_close(test, got, expected, what, rtol=ROUND_OFF):
     for key in KEYS:
         scale = max(float(np.abs(expected[key]).max()), 1e-30)
@@ -127,11 +136,7 @@ class BlenderMadeSplatObject(unittest.TestCase):
             obj = blender_import() if made_by == "blender" else st.import_file(SCENE, representation="POINTS",
                                                                                 up_axis="Z")
             place(obj)
-            camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-            scene.collection.objects.link(camera)
-            camera.location = (0.0, -7.0, 1.0)
-            camera.rotation_euler = (1.45, 0.0, 0.0)
-            scene.camera = camera
+            add_camera(scene)
             images[made_by] = st.render_to_array(f"made_by_{made_by}")
         blender, addon = images["blender"], images["addon"]
         self.assertGreater(float(np.mean(addon[..., 3] > 0.05)), 0.05)  # the scene is in view
@@ -300,11 +305,7 @@ class BlenderSpzImport(unittest.TestCase):
                 place(obj)
                 obj.matrix_world = obj.matrix_world @ mathutils.Matrix(RDF_TO_Z_UP.tolist())
                 bpy.context.view_layer.update()
-            camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-            scene.collection.objects.link(camera)
-            camera.location = (0.0, -7.0, 1.0)
-            camera.rotation_euler = (1.45, 0.0, 0.0)
-            scene.camera = camera
+            add_camera(scene)
             images[made_by] = st.render_to_array(f"spz_made_by_{made_by}")
         blender, addon = images["blender"], images["addon"]
         self.assertGreater(float(np.mean(addon[..., 3] > 0.05)), 0.05)  # the scene is in view

@@ -55,6 +55,18 @@ def evaluated_mesh(obj):
     return obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
 
 
+
+def move_faces(obj, faces, offset):
+    """Moves the faces of obj (in Edit Mode) with Blender's own operator, as a user moves them."""
+    bpy.context.tool_settings.mesh_select_mode = (False, False, True)
+    bpy.ops.mesh.select_all(action="DESELECT")
+    edit = bmesh.from_edit_mesh(obj.data)
+    edit.faces.ensure_lookup_table()
+    for face in faces:
+        edit.faces[face].select_set(True)
+    bmesh.update_edit_mesh(obj.data)
+    bpy.ops.transform.translate(value=offset)
+
 class MeshRead(unittest.TestCase):
     def setUp(self):
         st.reset_scene()
@@ -300,14 +312,7 @@ class MeshRead(unittest.TestCase):
         self.assertEqual(path, "read")
         self.assertTrue(np.array_equal(positions, converted()[0]))
         # A few faces moved by Blender's own operator (as a user moves them).
-        bpy.context.tool_settings.mesh_select_mode = (False, False, True)
-        bpy.ops.mesh.select_all(action="DESELECT")
-        edit = bmesh.from_edit_mesh(obj.data)
-        edit.faces.ensure_lookup_table()
-        for face in (5, 6, 700):
-            edit.faces[face].select_set(True)
-        bmesh.update_edit_mesh(obj.data)
-        bpy.ops.transform.translate(value=(0.0, 0.0, 0.05))
+        move_faces(obj, (5, 6, 700), (0.0, 0.0, 0.05))
         path, moved = read()
         self.assertEqual(path, "read")
         expected = converted()
@@ -380,14 +385,7 @@ class MeshRead(unittest.TestCase):
         depsgraph = bpy.context.evaluated_depsgraph_get()
         scene_sync = sync.SceneSync(depsgraph, interactive=True)
         first = scene_sync._read(obj.evaluated_get(depsgraph), depsgraph)
-        bpy.context.tool_settings.mesh_select_mode = (False, False, True)
-        bpy.ops.mesh.select_all(action="DESELECT")
-        edit = bmesh.from_edit_mesh(obj.data)
-        edit.faces.ensure_lookup_table()
-        for face in (3, 4, 500):
-            edit.faces[face].select_set(True)
-        bmesh.update_edit_mesh(obj.data)
-        bpy.ops.transform.translate(value=(0.0, 0.04, 0.0))
+        move_faces(obj, (3, 4, 500), (0.0, 0.04, 0.0))
         bpy.context.view_layer.update()
         reads = []
         reader = mesh_read.read_edit_mode_positions

@@ -12,7 +12,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 #elif defined(_WIN32)
-#include <windows.h>
+#include "core/windows_api.h"
 #endif
 
 #include "raysplats/errors.h"
