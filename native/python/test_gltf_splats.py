@@ -157,6 +157,10 @@ class ExportedSplatsFollowTheRatifiedText(unittest.TestCase):
         self.assertEqual(contents["splat_only_meshes"], ["scene Gaussians"])
 
     def test_khronos_validator(self):
+        if sys.platform == "win32":
+            # Under Wine, node (a Linux program here) cannot be started from Windows' Python. The same writer's file is
+            # validated by this test on Linux (python.gltf_splats), and the Windows tier compares the platforms' exports.
+            self.skipTest("expected: the Khronos validator runs in Node.js on Linux, not from Windows' Python")
         npm = os.environ.get("RAYSPLATS_NPM_DIR", os.path.expanduser("~/.cache/raysplats/npm"))
         if not (shutil.which("node") and os.path.exists(os.path.join(npm, "node_modules", "gltf-validator"))):
             self.skipTest("the Khronos glTF validator is not installed (scripts/setup_test_tools.sh)")
