@@ -143,3 +143,14 @@ def set_world_color(world, color):
             if node.bl_idname == "ShaderNodeBackground":
                 node.inputs["Color"].default_value = (*color, 1.0)
                 node.inputs["Strength"].default_value = 1.0
+
+
+def select_faces(obj, faces):
+    """In Edit Mode: exactly these faces of obj selected (the caller sets the select mode and updates the mesh)."""
+    import bmesh
+
+    bpy.ops.mesh.select_all(action="DESELECT")
+    edit = bmesh.from_edit_mesh(obj.data)
+    edit.faces.ensure_lookup_table()
+    for face in faces:
+        edit.faces[face].select_set(True)

@@ -40,11 +40,7 @@ def edit_faces(obj, faces, operator):
     bpy.context.view_layer.objects.active = obj
     bpy.ops.object.mode_set(mode="EDIT")
     bpy.context.tool_settings.mesh_select_mode = (False, False, True)
-    bpy.ops.mesh.select_all(action="DESELECT")
-    mesh = bmesh.from_edit_mesh(obj.data)
-    mesh.faces.ensure_lookup_table()
-    for face in faces:
-        mesh.faces[face].select_set(True)
+    st.select_faces(obj, faces)
     operator()
     bpy.ops.object.mode_set(mode="OBJECT")
 
@@ -55,17 +51,13 @@ def evaluated_mesh(obj):
     return obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
 
 
-
 def move_faces(obj, faces, offset):
     """Moves the faces of obj (in Edit Mode) with Blender's own operator, as a user moves them."""
     bpy.context.tool_settings.mesh_select_mode = (False, False, True)
-    bpy.ops.mesh.select_all(action="DESELECT")
-    edit = bmesh.from_edit_mesh(obj.data)
-    edit.faces.ensure_lookup_table()
-    for face in faces:
-        edit.faces[face].select_set(True)
+    st.select_faces(obj, faces)
     bmesh.update_edit_mesh(obj.data)
     bpy.ops.transform.translate(value=offset)
+
 
 class MeshRead(unittest.TestCase):
     def setUp(self):

@@ -462,11 +462,7 @@ class RenderEngine(unittest.TestCase):
 
         def move(faces_moved, offset):
             import bmesh
-            bpy.ops.mesh.select_all(action="DESELECT")
-            edit = bmesh.from_edit_mesh(splats.data)
-            edit.faces.ensure_lookup_table()
-            for face in faces_moved:
-                edit.faces[face].select_set(True)
+            st.select_faces(splats, faces_moved)
             bmesh.update_edit_mesh(splats.data)
             bpy.context.view_layer.update()
             bpy.ops.transform.translate(value=offset)
