@@ -61,7 +61,8 @@ else
   windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
 fi
 "$root/scripts/build.sh" "$root/build" "-DRAYSPLATS_BPY_PYTHONS=$(IFS=';'; echo "${bpy_pythons[*]}")" \
-  -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313" "${windows[@]}"
+  -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313" -DRAYSPLATS_DATA_DIR="$(realpath -m "$data")" \
+  "${windows[@]}"
 cd "$root/build"
 # Passed tests' output is kept (its end, where the reporters print their skips) for the summary.
 status=0
