@@ -1,11 +1,16 @@
-# farm/install_worker.sh on a worker's Blender, each case in a fresh user folder: the extension zip installs, the
+# farm/install_worker.py on a worker's Blender, each case in a fresh user folder: the extension zip installs, the
 # worker renders with it in a new Blender process and runs its command line as a farm job does; a zip without the
-# native module, or with only another Python's, and a file that is no extension zip fail with a non-zero status and
-# a message that says why.
+# native module, or with only another Python's, a zip of another platform and a file that is no extension zip fail
+# with a non-zero status and a message that says why.
 #   python3 test_install_worker.py --zip dist/raysplats-0.1.0-linux_x64.zip --data-dir ../shared/data --tmp-dir DIR
 #           [--blender blender | --bpy-python ~/.cache/raysplats/bpy45-venv/bin/python]
+# With --wine-site DIR (Blender 4.2 for Windows as a module, scripts/windows/setup_pythons.sh), a Windows worker under
+# Wine: install_worker.py itself runs in Windows CPython 3.11 (scripts/windows/wine_python.sh), every path it is given
+# (the zip, the user folder, the bpy Python) in Windows' form, and installs the Windows zip; the install, the check
+# and the refusals of a file that is no extension zip and of the Linux zip are tested there.
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -17,42 +22,72 @@ import unittest_report  # noqa: E402
 import zipfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-INSTALL = os.path.join(os.path.dirname(HERE), "install_worker.sh")
+REPO = os.path.dirname(os.path.dirname(HERE))
+INSTALL = os.path.join(os.path.dirname(HERE), "install_worker.py")
+WINE_PYTHON = os.path.join(REPO, "scripts", "windows", "wine_python.sh")
 ARGS = None
 
 
+def worker_path(path):
+    """`path` as the worker is given it: under Wine in Windows' form, on the drive Wine maps to / (Z:\\work\\...)."""
+    path = os.path.abspath(path)
+    return "Z:" + path.replace("/", "\\") if ARGS.wine_site else path
+
+
+def bpy_python():
+    """The command that runs Blender as a Python module: the bpy venv's Python, or Windows' under Wine."""
+    if ARGS.wine_site:
+        return [WINE_PYTHON, "3.11", "--site", ARGS.wine_site]
+    return [ARGS.bpy_python] if ARGS.bpy_python else None
+
+
+def native_module(tag):
+    """The file name of the zip's native module for the worker's Python `tag` ("311")."""
+    return f"_native.cp{tag}-win_amd64.pyd" if ARGS.wine_site else f"_native.cpython-{tag}-x86_64-linux-gnu.so"
+
+
 def install(case, zip_path=None):
-    """Runs install_worker.sh with a fresh user folder; returns (status, stdout + stderr, user folder)."""
+    """Runs install_worker.py with a fresh user folder; returns (status, stdout + stderr, user folder)."""
     user = os.path.join(ARGS.tmp_dir, case)
     shutil.rmtree(user, ignore_errors=True)
     os.makedirs(user)
-    command = [INSTALL]
-    command += ["--bpy-python", ARGS.bpy_python] if ARGS.bpy_python else ["--blender", ARGS.blender]
+    if ARGS.wine_site:
+        # The Windows Python running the installer, with bpy on its path, is the worker's bpy Python too.
+        command = bpy_python() + [worker_path(INSTALL), "--bpy-python", ARGS.windows_python]
+    else:
+        command = [sys.executable, INSTALL]
+        command += ["--bpy-python", ARGS.bpy_python] if ARGS.bpy_python else ["--blender", ARGS.blender]
     if zip_path:
-        command.append(zip_path)
-    env = dict(os.environ, BLENDER_USER_RESOURCES=user, TMPDIR=ARGS.tmp_dir)
-    run = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+        command.append(worker_path(zip_path))
+    # TMPDIR stays a Linux path: under Wine, wineserver reads it too (and Windows' Python takes it as on Z:).
+    env = dict(os.environ, BLENDER_USER_RESOURCES=worker_path(user), TMPDIR=ARGS.tmp_dir)
+    run = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
     return run.returncode, run.stdout + run.stderr, user
 
 
 def worker_python():
     """The worker Blender's Python as "311" or "313" (Blender 5.1+ embeds 3.13; the test itself may run on another)."""
     probe = "import sys; print('WORKER_PYTHON %d%d' % sys.version_info[:2])"
-    if ARGS.bpy_python:
-        command = [ARGS.bpy_python, "-c", probe]
+    if bpy_python():
+        command = bpy_python() + ["-c", probe]
     else:
         command = [ARGS.blender, "-b", "--factory-startup", "-noaudio", "--python-expr", probe]
     output = subprocess.run(command, capture_output=True, text=True, timeout=300).stdout
     return next(line.split()[1] for line in output.splitlines() if line.startswith("WORKER_PYTHON "))
 
 
-def variant(name, drop):
-    """A copy of the zip without the members `drop` picks (stored, not compressed: it is read once)."""
+def variant(name, drop=lambda member: False, manifest=lambda text: text):
+    """A copy of the zip without the members `drop` picks and with its manifest's text through `manifest` (stored,
+    not compressed: it is read once)."""
     path = os.path.join(ARGS.tmp_dir, name)
     with zipfile.ZipFile(ARGS.zip) as source, zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as target:
         for info in source.infolist():
-            if not drop(info.filename):
-                target.writestr(info.filename, source.read(info))
+            if drop(info.filename):
+                continue
+            data = source.read(info)
+            if info.filename == "blender_manifest.toml":
+                data = manifest(data.decode()).encode()
+            target.writestr(info.filename, data)
     return path
 
 
@@ -62,8 +97,11 @@ class InstallWorker(unittest.TestCase):
         self.assertEqual(status, 0, output)
         self.assertIn("check_worker: RAYSPLATS works in Blender", output)
         # The add-on the fresh process rendered with is the installed copy, in this user folder.
-        self.assertRegex(output, r"add-on \S*raysplats at " + os.path.realpath(user))
-        self.assertIn(f"_native.cpython-{worker_python()}", output)
+        self.assertRegex(output, r"add-on \S*raysplats at " + re.escape(worker_path(os.path.realpath(user))))
+        self.assertIn(f"native module {native_module(worker_python())}", output)
+        if ARGS.wine_site:  # the user folder given in Windows' form is the one the files went to
+            installed = os.path.join(user, "extensions", "user_default", "raysplats", native_module("311"))
+            self.assertTrue(os.path.isfile(installed), installed)
 
     def test_installed_command_line_converts(self):
         # The add-on's command line as a farm job runs it (farm/openjd/raysplats_convert.yaml): imported from the
@@ -87,7 +125,7 @@ class InstallWorker(unittest.TestCase):
         args = ["--", "convert", os.path.join(ARGS.data_dir, "small.splat"), "-o", os.path.dirname(target),
                 "--format", "spz"]
         if ARGS.bpy_python:
-            command = [ARGS.bpy_python, "-c", runner] + args
+            command = bpy_python() + ["-c", runner] + args
         else:
             command = [ARGS.blender, "-b", "-noaudio", "--python-expr", runner] + args
         run = subprocess.run(command, env=dict(os.environ, BLENDER_USER_RESOURCES=user), capture_output=True,
@@ -108,17 +146,28 @@ class InstallWorker(unittest.TestCase):
         # Only the other Python's module (3.13 for Blender 4.2-5.0 and 3.4, 3.11 for 5.1+): the worker cannot load it.
         own = worker_python()
         other = "311" if own == "313" else "313"
-        zip_path = variant(f"python{other}_only.zip", lambda n: n.startswith(f"_native.cpython-{own}"))
+        zip_path = variant(f"python{other}_only.zip", lambda n: n == native_module(own))
         status, output, _ = install("wrong_python", zip_path)
         self.assertEqual(status, 1, output)
         self.assertIn(f"Python {own[0]}.{own[1:]}", output)
-        self.assertIn(f"_native.cpython-{other}-x86_64-linux-gnu.so", output)  # what the add-on has instead
+        self.assertIn(native_module(other), output)  # what the add-on has instead
 
     def test_not_an_extension_zip_fails(self):
         zip_path = variant("no_manifest.zip", lambda n: n == "blender_manifest.toml")
         status, output, _ = install("no_manifest", zip_path)
         self.assertEqual(status, 1, output)
-        self.assertIn("no_manifest.zip is not the RaySplats extension zip: no blender_manifest.toml", output)
+        self.assertIn(f"install_worker: {worker_path(zip_path)} is not the RaySplats extension zip: no "
+                      "blender_manifest.toml at its root", output)
+
+    def test_zip_for_another_platform_fails(self):
+        # Blender's installer leaves such a zip out, says so and exits with status 0: the check would then only see
+        # an add-on that is not enabled.
+        own, other = ("windows-x64", "linux-x64") if ARGS.wine_site else ("linux-x64", "windows-x64")
+        zip_path = variant("other_platform.zip", manifest=lambda text: re.sub(
+            r"^platforms = .*$", f'platforms = ["{other}"]', text, count=1, flags=re.M))
+        status, output, _ = install("other_platform", zip_path)
+        self.assertEqual(status, 1, output)
+        self.assertIn(f"install_worker: {worker_path(zip_path)} is for {other}, not this worker's {own}", output)
 
 
 class SourceTreeInstall(unittest.TestCase):
@@ -143,11 +192,26 @@ def main():
     parser.add_argument("--blender", default="blender")
     parser.add_argument("--bpy-python")
     parser.add_argument("--source-tree", action="store_true", help="also install from the source tree (Blender 3.x)")
+    parser.add_argument("--wine-site", help="Blender 4.2 for Windows as a module: a Windows worker under Wine")
     ARGS = parser.parse_args()
     ARGS.tmp_dir = os.path.abspath(ARGS.tmp_dir)
     ARGS.zip = os.path.abspath(ARGS.zip)
     os.makedirs(ARGS.tmp_dir, exist_ok=True)
     loader = unittest.TestLoader()
+    if ARGS.wine_site:
+        # The Windows python.exe, as Windows names it, for --bpy-python (bpy comes from the PYTHONPATH it inherits).
+        probe = subprocess.run([WINE_PYTHON, "3.11", "-c", "import sys; print('WINDOWS_PYTHON', sys.executable)"],
+                               capture_output=True, text=True, timeout=300)
+        found = [line.split(" ", 1)[1] for line in probe.stdout.splitlines() if line.startswith("WINDOWS_PYTHON ")]
+        if probe.returncode != 0 or not found:
+            sys.exit(f"test_install_worker: Windows Python 3.11 does not run under Wine:\n{probe.stdout}{probe.stderr}")
+        ARGS.windows_python = found[0]
+        ARGS.bpy_python = ARGS.windows_python
+        # An install imports bpy for Windows twice, slowly under Wine: the install and the refusals (which stop
+        # before Blender runs) are what differs on Windows.
+        suite = unittest.TestSuite(InstallWorker(name) for name in (
+            "test_installs_and_renders", "test_not_an_extension_zip_fails", "test_zip_for_another_platform_fails"))
+        sys.exit(unittest_report.run(suite))
     suite = loader.loadTestsFromTestCase(InstallWorker)
     if ARGS.source_tree:
         suite.addTests(loader.loadTestsFromTestCase(SourceTreeInstall))
