@@ -72,6 +72,15 @@ if(RAYSPLATS_WINDOWS_BLENDER_SITE)
     FIXTURES_REQUIRED raysplats_windows_zip FIXTURES_SETUP raysplats_windows_bpy4_2)
   raysplats_skips_with_77(windows.bpy4_2.extension_install)
   file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/windows-tmp-bpy4_2)
+  # A Windows render-farm worker: farm/install_worker.py run by Windows CPython 3.11 installs the zip into a user
+  # folder given in Windows' form and checks that Blender 4.2 for Windows renders with it; and its refusals.
+  add_test(NAME windows.bpy4_2.install_worker
+    COMMAND ${Python_EXECUTABLE} ${PROJECT_SOURCE_DIR}/farm/tests/test_install_worker.py --zip ${windows_zip}
+            --data-dir ${RAYSPLATS_DATA_DIR} --wine-site ${RAYSPLATS_WINDOWS_BLENDER_SITE}
+            --tmp-dir ${CMAKE_BINARY_DIR}/windows-tmp-install-worker)
+  set_tests_properties(windows.bpy4_2.install_worker PROPERTIES LABELS "windows;farm;extension" TIMEOUT 600
+    FIXTURES_REQUIRED raysplats_windows_zip)
+  raysplats_skips_with_77(windows.bpy4_2.install_worker)
   if(RAYSPLATS_EXTRA_PYTHON AND RAYSPLATS_BPY_PYTHONS MATCHES "(^|;)4\\.2=")
     add_test(NAME windows.bpy4_2.agrees_with_linux
       COMMAND ${Python_EXECUTABLE} ${windows_scripts}/compare_platforms.py ${compare_dir}/linux-bpy4_2

@@ -57,7 +57,8 @@ def this_platform():
     """This system as extension manifests name platforms (windows-x64, linux-x64, macos-arm64: Blender's bl_pkg)."""
     system = {"win32": "windows", "darwin": "macos"}.get(sys.platform, sys.platform)
     machine = platform.machine().lower()
-    return f"{system}-{ {'x86_64': 'x64', 'amd64': 'x64', 'aarch64': 'arm64'}.get(machine, machine)}"
+    machine = {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64"}.get(machine, machine)
+    return f"{system}-{machine}"
 
 
 def check_zip(path):

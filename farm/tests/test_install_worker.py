@@ -46,12 +46,15 @@ def native_module(tag):
     return f"_native.cp{tag}-win_amd64.pyd" if ARGS.wine_site else f"_native.cpython-{tag}-x86_64-linux-gnu.so"
 
 
-def install(case, zip_path=None):
-    """Runs install_worker.py with a fresh user folder; returns (status, stdout + stderr, user folder)."""
+def install(case, zip_path=None, by_blender=False):
+    """Runs install_worker.py with a fresh user folder (with by_blender, run by the worker's Blender itself, which it
+    then installs into); returns (status, stdout + stderr, user folder)."""
     user = os.path.join(ARGS.tmp_dir, case)
     shutil.rmtree(user, ignore_errors=True)
     os.makedirs(user)
-    if ARGS.wine_site:
+    if by_blender:
+        command = [ARGS.blender, "-b", "-noaudio", "--python", INSTALL, "--"]
+    elif ARGS.wine_site:
         # The Windows Python running the installer, with bpy on its path, is the worker's bpy Python too.
         command = bpy_python() + [worker_path(INSTALL), "--bpy-python", ARGS.windows_python]
     else:
@@ -102,6 +105,15 @@ class InstallWorker(unittest.TestCase):
         if ARGS.wine_site:  # the user folder given in Windows' form is the one the files went to
             installed = os.path.join(user, "extensions", "user_default", "raysplats", native_module("311"))
             self.assertTrue(os.path.isfile(installed), installed)
+
+    def test_run_by_the_workers_blender(self):
+        # A worker with no Python of its own: its Blender runs the installer and is the Blender installed into.
+        if bpy_python():
+            self.skipTest("expected: Blender as a module has no executable to run the installer with")
+        status, output, user = install("by_blender", ARGS.zip, by_blender=True)
+        self.assertEqual(status, 0, output)
+        self.assertRegex(output, r"check_worker: RAYSPLATS works in Blender .* add-on \S*raysplats at "
+                         + re.escape(os.path.realpath(user)))
 
     def test_installed_command_line_converts(self):
         # The add-on's command line as a farm job runs it (farm/openjd/raysplats_convert.yaml): imported from the

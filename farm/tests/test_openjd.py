@@ -45,6 +45,11 @@ class OpenJD(unittest.TestCase):
         cls.blend = os.path.join(cls.root, "shot.blend")
         ft.build_shot(cls.blend, frames=FRAMES)
 
+    def template(self, path):
+        """A template as data (read by the openjd venv's PyYAML)."""
+        return json.loads(ft.run([self.venv_python, "-c", "import json, sys, yaml; json.dump(yaml.safe_load("
+                                  "open(sys.argv[1])), sys.stdout)", path]).stdout)
+
     def tasks(self, template, step, **parameters):
         """The step's tasks as the scheduler makes them (openjd-model), in the form of `openjd run --tasks`."""
         command = [self.venv_python, os.path.join(ft.HERE, "openjd_tasks.py"), template, step]
@@ -106,6 +111,13 @@ class OpenJD(unittest.TestCase):
             if previous is not None:  # the camera moves: frames differ, so the comparison can fail
                 self.assertGreater(np.abs(actual - previous).max(), 0.05)
             previous = actual
+
+    def test_render_task_runs_blender_itself(self):
+        # Any worker, Windows' too, can run the task: its command is the worker's Blender, with no script between
+        # (a script would need a shell there). The recorded command lines (the Flamenco test) are Blender's arguments.
+        step = next(step for step in self.template(RENDER)["steps"] if step["name"] == "Render")
+        self.assertEqual(step["script"]["actions"]["onRun"]["command"], "{{Param.Blender}}")
+        self.assertNotIn("embeddedFiles", step["script"])
 
     def test_worker_without_raysplats_fails_its_task(self):
         env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(self.root, "bare_blender"))
@@ -175,9 +187,7 @@ class OpenJD(unittest.TestCase):
         self.assertEqual(flamenco_commands, openjd_commands)
         # The job type offers the template's parameters, with its defaults and choices.
         settings = {setting["key"]: setting for setting in compiled["job_type"]["settings"]}
-        template = json.loads(ft.run([self.venv_python, "-c", "import json, sys, yaml; json.dump(yaml.safe_load("
-                                      "open(sys.argv[1]))['parameterDefinitions'], sys.stdout)", RENDER]).stdout)
-        template = {parameter["name"]: parameter for parameter in template}
+        template = {parameter["name"]: parameter for parameter in self.template(RENDER)["parameterDefinitions"]}
         pairs = {"BlendFile": "blendfile", "Frames": "frames", "ChunkSize": "chunk_size", "Threads": "threads",
                  "OutputPath": "render_output_path", "OutputFormat": "format"}
         self.assertEqual(set(template) - {"Blender"}, set(pairs))  # Blender: Flamenco's {blender} variable
