@@ -1,7 +1,7 @@
 # Checks that a render-farm worker's Blender can render with RaySplats as it starts for a job: the add-on enabled in
 # its preferences, the RAYSPLATS engine registered, the native module for this Blender's Python loaded, and a tiny
 # render through the engine. Prints one line starting "check_worker:" and exits 0 when all hold, else 1 with the
-# reason. farm/install_worker.sh runs it after installing; run it on any worker to see why frames fail there:
+# reason. farm/install_worker.py runs it after installing; run it on any worker to see why frames fail there:
 #   blender -b -noaudio --python farm/check_worker.py            (a Blender binary: its own preferences)
 #   PYTHON farm/check_worker.py                                   (Blender as a Python module, PyPI bpy)
 # BLENDER_USER_RESOURCES picks another user folder, as for Blender itself.
@@ -93,7 +93,7 @@ def check():
     name = _enabled_addon()
     if name is None:
         return False, (f"the RaySplats add-on is not enabled in {_blender()} (user folder "
-                       f"{bpy.utils.resource_path('USER')}): install it with farm/install_worker.sh")
+                       f"{bpy.utils.resource_path('USER')}): install it with farm/install_worker.py")
     package = sys.modules.get(name) or importlib.import_module(name)
     if ENGINE not in _registered_engines():
         return False, f"the add-on {name} is enabled but the {ENGINE} engine is not registered in {_blender()}"

@@ -8,7 +8,7 @@
 // that template's: the frames split into ceil(count / chunk_size) contiguous chunks as even as can be (Open Job
 // Description's TASK_CHUNKING, CONTIGUOUS), not Flamenco's own frameChunker (full chunks and a short last one).
 // Install: copy this file into the Manager's `scripts/` folder (beside flamenco-manager) and restart it; the Blender
-// add-on then offers "RaySplats Render". Workers need RaySplats in their Blender (farm/install_worker.sh).
+// add-on then offers "RaySplats Render". Workers need RaySplats in their Blender (farm/install_worker.py).
 
 const OUTPUT_FORMATS = ["PNG", "OPEN_EXR", "OPEN_EXR_MULTILAYER", "TIFF", "JPEG"];
 
