@@ -28,6 +28,15 @@ data=${RAYSPLATS_DATA_DIR:-$root/../shared/data}
 if [[ -z $(ls -A "$data" 2>/dev/null) ]]; then
   tier_unavailable "data set" "no real scenes in $data (the README's ../shared/data)" || exit 1
 fi
+# The Windows tier's dependencies (scripts/windows/build_deps.sh: compiling, on a first run) are built in the
+# background while the Blenders and Pythons below download; quick when its cache is already built.
+windows_deps_pid=
+stop_windows_deps() { [[ -z $windows_deps_pid ]] || kill -- "-$windows_deps_pid" 2>/dev/null || true; }
+if [[ ${RAYSPLATS_TEST_WINDOWS:-1} != 0 ]]; then
+  setsid -w "$root/scripts/windows/build_deps.sh" >"$root/build/windows-deps.log" 2>&1 &
+  windows_deps_pid=$!
+  trap stop_windows_deps EXIT
+fi
 # npm test tools (glTF validator, draco3d) into ~/.cache/raysplats/npm; ctest's setup.test_tools does it too.
 "$root/scripts/setup_test_tools.sh" >/dev/null
 # One cached venv per official Blender (PyPI bpy).
@@ -49,16 +58,28 @@ if [[ -z $python313 ]]; then
 fi
 # The Windows tier (ctest label windows): the module and zip cross-built for Windows x64 and tested in Windows'
 # Python and Blender 4.2 for Windows under Wine (docs/building.md). The first run builds the dependencies from Debian's
-# sources into ~/.cache/raysplats/windows; RAYSPLATS_TEST_WINDOWS=0 leaves the tier out.
+# sources into ~/.cache/raysplats/windows; RAYSPLATS_TEST_WINDOWS=0 leaves the tier out. Windows' Pythons download
+# while the dependencies still compile.
 windows=(-DRAYSPLATS_WINDOWS_BUILD= -DRAYSPLATS_WINDOWS_BLENDER_SITE=)
 if [[ ${RAYSPLATS_TEST_WINDOWS:-1} == 0 ]]; then
   tier_unavailable "Windows" "RAYSPLATS_TEST_WINDOWS=0 left it out" || exit 1
-elif ! windows_build=$("$root/scripts/windows/build.sh" "$root/build-windows"); then
-  tier_unavailable "Windows" "scripts/windows/build.sh could not cross-build the module (its reason is above)" || exit 1
-elif ! windows_cache=$("$root/scripts/windows/setup_pythons.sh"); then
-  tier_unavailable "Windows" "scripts/windows/setup_pythons.sh could not set up Windows' Pythons (above)" || exit 1
 else
-  windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
+  windows_cache=$("$root/scripts/windows/setup_pythons.sh") || windows_cache=
+  deps_status=0
+  wait "$windows_deps_pid" || deps_status=$?
+  windows_deps_pid=
+  if [[ -z $windows_cache ]]; then
+    tier_unavailable "Windows" "scripts/windows/setup_pythons.sh could not set up Windows' Pythons (above)" || exit 1
+  elif ((deps_status)); then
+    tail -n 30 "$root/build/windows-deps.log" >&2
+    tier_unavailable "Windows" "scripts/windows/build_deps.sh failed (status $deps_status; build/windows-deps.log)" ||
+      exit 1
+  elif ! windows_build=$("$root/scripts/windows/build.sh" "$root/build-windows"); then
+    tier_unavailable "Windows" "scripts/windows/build.sh could not cross-build the module (its reason is above)" ||
+      exit 1
+  else
+    windows=(-DRAYSPLATS_WINDOWS_BUILD="$windows_build" -DRAYSPLATS_WINDOWS_BLENDER_SITE="$windows_cache/bpy-4.2")
+  fi
 fi
 "$root/scripts/build.sh" "$root/build" "-DRAYSPLATS_BPY_PYTHONS=$(IFS=';'; echo "${bpy_pythons[*]}")" \
   -DRAYSPLATS_BPY4_PYTHON= -DRAYSPLATS_EXTRA_PYTHON="$python313" -DRAYSPLATS_DATA_DIR="$(realpath -m "$data")" \

@@ -82,12 +82,14 @@ cmake_build() {  # cmake_build NAME SOURCE [cmake options...]
   local name=$1 src=$2
   shift 2
   log "building $name"
+  local start=$SECONDS
   cmake -S "$src" -B "$work/build-$name" -G Ninja -DCMAKE_TOOLCHAIN_FILE="$toolchain" -DCMAKE_BUILD_TYPE=Release \
         -DCMAKE_INSTALL_PREFIX="$prefix" -DCMAKE_PREFIX_PATH="$prefix" -DBUILD_SHARED_LIBS=OFF "$@" \
         > "$work/$name.configure.log" 2>&1 || { tail -30 "$work/$name.configure.log" >&2; exit 1; }
   cmake --build "$work/build-$name" -j "$jobs" > "$work/$name.build.log" 2>&1 ||
     { grep -m5 -B2 -A8 "error" "$work/$name.build.log" >&2 || tail -30 "$work/$name.build.log" >&2; exit 1; }
   cmake --install "$work/build-$name" > /dev/null
+  log "built $name in $((SECONDS - start)) s"
 }
 
 for entry in "${SOURCES[@]}"; do
@@ -104,7 +106,9 @@ cmake_build onetbb "$(unpack "$(file_of onetbb)")" -DTBB_TEST=OFF -DTBB_EXAMPLES
 # every x86-64 Windows CPU may pick (SSE2, SSE4.2, AVX, AVX2; AVX-512 is left out: GCC cannot keep 64-byte stack
 # alignment on Windows, and nothing here could run it) and only the geometry types the renderer makes (triangles,
 # user geometry for the Gaussians, instances). The patch: MinGW taken for GCC rather than MSVC, no ELF-only
-# -z link flags, no UTF-16 version resource in a static library, and the static TBB's Threads dependency found.
+# -z link flags, no UTF-16 version resource in a static library, the static TBB's Threads dependency found, and the
+# sources of the geometry types left out (curves, points, quads, grids) not compiled: upstream compiles their
+# intersectors for every instruction set whatever the options, the costliest files of the whole build.
 src=$(unpack "$(file_of embree)")
 patch -d "$src" -p1 --quiet < "$here/patches/embree-mingw.patch"
 cmake_build embree "$src" -DEMBREE_STATIC_LIB=ON -DEMBREE_TASKING_SYSTEM=TBB -DTBB_DIR="$prefix/lib/cmake/TBB" \

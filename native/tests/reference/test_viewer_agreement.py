@@ -82,6 +82,7 @@ stops before it). --table, 640 x 480, DISPLAY, dB against the EWA rasterizer, tr
 (volumetric; in flat mode the splatted figures are the same, as the footprint is the whole 3D Gaussian's in both modes,
 while flat mode traced is 24.5-35.6 dB.)
 """
+import functools
 import math
 import os
 import sys
@@ -174,15 +175,25 @@ def render_raysplats(native, splats, camera_to_world, near, gaussian_mode, blend
     return ewa.linear_to_srgb(rgba[..., :3])  # as Blender's Standard view transform shows the linear film
 
 
+@functools.lru_cache(maxsize=None)
+def scene_views(data_dir, name):
+    """A scene's splats and, per view, its camera and the EWA rasterizer's image of it: computed once, as the tests
+    below compare the engine's several settings with the same references."""
+    splats = ewa.read_splats(os.path.join(data_dir, name))
+    fx = WIDTH * LENS / SENSOR
+    views = {}
+    for view in VIEWS:
+        camera_to_world, world_to_view, near = view_camera(splats, view)
+        views[view] = (camera_to_world, near, ewa.rasterize(splats, world_to_view, fx, fx, WIDTH, HEIGHT, near=near))
+    return splats, views
+
+
 def measure(native, data_dir, modes=("VOLUMETRIC",), spaces=("DISPLAY", "LINEAR"), splattings=(False,)):
     """{(scene, view, mode, space, camera_ray_splatting): PSNR}."""
     results = {}
-    fx = WIDTH * LENS / SENSOR
     for name in SCENES:
-        splats = ewa.read_splats(os.path.join(data_dir, name))
-        for view in VIEWS:
-            camera_to_world, world_to_view, near = view_camera(splats, view)
-            reference = ewa.rasterize(splats, world_to_view, fx, fx, WIDTH, HEIGHT, near=near)
+        splats, views = scene_views(data_dir, name)
+        for view, (camera_to_world, near, reference) in views.items():
             for mode in modes:
                 for space in spaces:
                     for splatting in splattings:
