@@ -2,6 +2,8 @@
 # RaySplats, on the same object and camera: the CPU seconds each takes to a given noise (RMSE of the display image
 # against its own high-sample render, adaptive sampling and denoising off), and each one's PSNR against the
 # independent numpy EWA rasterizer of the file (native/tests/reference/ewa_rasterizer.py: what 3DGS viewers show).
+# With --noise seeds, noise is each pixel's standard deviation across seeds (two renders per count) and Cycles is
+# rendered once more at the sample count that reaches RaySplats' one-sample noise: the CPU ratio at equal noise.
 # Optionally (--lit) both under a sun: RaySplats' Lit shading beside Cycles, which does not light splats.
 #   python examples/benchmark_blender_splats.py --data DIR --out DIR [--scene unicorn_sh3_reordered.ply]
 #       (the Python of a bpy 5.3 venv, ~/.cache/raysplats/bpy53-venv/bin/python; CPU seconds are the process's own)
@@ -23,6 +25,11 @@ parser.add_argument("--height", type=int, default=540)
 parser.add_argument("--raysplats-samples", default="1,2,4,8,16", help="sample counts measured; the last x4: reference")
 parser.add_argument("--cycles-samples", default="1,2,4,8,16", help="sample counts measured; the last x4: reference")
 parser.add_argument("--lit", action="store_true", help="also render both under a sun (RaySplats Lit shading)")
+parser.add_argument("--noise", choices=("reference", "seeds"), default="reference",
+                    help="reference: RMS difference from the same engine's render at 4x the largest count; seeds: "
+                         "RMS difference of two renders with different seeds over sqrt 2 (each pixel's standard "
+                         "deviation: no reference, so neither its own noise nor either engine's bias enters), then "
+                         "the Cycles samples and CPU seconds at RaySplats' one-sample noise, rendered to confirm")
 args = parser.parse_args()
 
 import bpy  # noqa: E402
@@ -43,8 +50,10 @@ def cpu_seconds():
     return usage.ru_utime + usage.ru_stime
 
 
-def render(engine, samples, name):
-    """F12 into a 32-bit EXR: (display image, sRGB of the linear film under the Standard view, and CPU seconds)."""
+def render(engine, samples, name, seed=None):
+    """F12 into a 32-bit EXR: (display image, sRGB of the linear film under the Standard view, and CPU seconds).
+    The seed is the sample count unless given."""
+    seed = samples if seed is None else seed
     scene = bpy.context.scene
     scene.render.engine = engine
     if engine == "CYCLES":
@@ -52,11 +61,11 @@ def render(engine, samples, name):
         scene.cycles.samples = samples
         scene.cycles.use_adaptive_sampling = False
         scene.cycles.use_denoising = False
-        scene.cycles.seed = samples
+        scene.cycles.seed = seed
     else:  # (Camera Rays as Splats as by default: F12 as a user gets it)
         scene.raysplats.samples = samples
         scene.raysplats.use_adaptive_sampling = False
-        scene.raysplats.seed = samples
+        scene.raysplats.seed = seed
     path = os.path.join(args.out, f"{name}.exr")
     scene.render.filepath = path
     start = cpu_seconds()
@@ -116,21 +125,44 @@ fx = args.width * LENS / SENSOR
 viewer = ewa.rasterize(splats, world_to_view, fx, fx, args.width, args.height, near=near)
 save_png(viewer, "viewer")
 
-results = {"scene": args.scene, "size": [args.width, args.height], "load": os.getloadavg(), "engines": {}}
+results = {"scene": args.scene, "size": [args.width, args.height], "load": os.getloadavg(), "noise": args.noise,
+           "engines": {}}
+
+
+def measure(engine, samples):
+    """One row: CPU seconds (the mean of the renders made), noise, PSNR against the rasterizer."""
+    image, seconds = render(engine, samples, f"{engine.lower()}_{samples}")
+    row = {"samples": samples, "psnr_vs_viewer": round(ewa.psnr(viewer, image), 2)}
+    if args.noise == "seeds":
+        other, other_seconds = render(engine, samples, f"{engine.lower()}_{samples}_b", seed=samples + 1000)
+        row.update(cpu_seconds=round((seconds + other_seconds) / 2, 2), noise=round(rmse(image, other) / 2 ** 0.5, 5))
+    else:
+        row.update(cpu_seconds=round(seconds, 2), noise=round(rmse(image, reference), 5))
+    print(engine, row, flush=True)
+    return row
+
+
 for engine, counts in (("RAYSPLATS", args.raysplats_samples), ("CYCLES", args.cycles_samples)):
     counts = [int(c) for c in counts.split(",")]
-    reference, reference_seconds = render(engine, 4 * counts[-1], f"{engine.lower()}_reference")
-    save_png(reference, f"{engine.lower()}_reference")
-    rows = []
-    for samples in counts:
-        image, seconds = render(engine, samples, f"{engine.lower()}_{samples}")
-        rows.append({"samples": samples, "cpu_seconds": round(seconds, 2), "rmse": round(rmse(image, reference), 5),
-                     "psnr_vs_viewer": round(ewa.psnr(viewer, image), 2)})
-        print(engine, rows[-1], flush=True)
-    results["engines"][engine] = {"reference_samples": 4 * counts[-1],
-                                  "reference_cpu_seconds": round(reference_seconds, 1),
-                                  "reference_psnr_vs_viewer": round(ewa.psnr(viewer, reference), 2), "rows": rows}
-    print(engine, "reference", results["engines"][engine]["reference_psnr_vs_viewer"], flush=True)
+    entry = results["engines"][engine] = {}
+    if args.noise == "reference":
+        reference, reference_seconds = render(engine, 4 * counts[-1], f"{engine.lower()}_reference")
+        save_png(reference, f"{engine.lower()}_reference")
+        entry.update(reference_samples=4 * counts[-1], reference_cpu_seconds=round(reference_seconds, 1),
+                     reference_psnr_vs_viewer=round(ewa.psnr(viewer, reference), 2))
+    entry["rows"] = [measure(engine, samples) for samples in counts]
+
+if args.noise == "seeds":
+    # Cycles' noise against its samples is a power law (Monte Carlo: about samples^-0.5); its CPU seconds a fixed
+    # cost plus a cost per sample. Both fitted to the rows, the count at RaySplats' one-sample noise is rendered.
+    rows = results["engines"]["CYCLES"]["rows"]
+    slope, intercept = np.polyfit(np.log([r["samples"] for r in rows]), np.log([r["noise"] for r in rows]), 1)
+    target = results["engines"]["RAYSPLATS"]["rows"][0]
+    needed = int(np.ceil(np.exp((np.log(target["noise"]) - intercept) / slope)))
+    confirm = measure("CYCLES", needed)
+    results["equal_noise"] = {"raysplats": target, "cycles_slope": round(float(slope), 3), "cycles": confirm,
+                              "cpu_ratio": round(confirm["cpu_seconds"] / target["cpu_seconds"], 1)}
+    print("equal noise", results["equal_noise"], flush=True)
 
 if args.lit:
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))

@@ -48,3 +48,33 @@ class StageProgress:
         total = sum(self.times.values())
         parts = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in self.times.items())
         return f"{self.title}: {parts}; total {total:.2f} s"
+
+
+class StageClock:
+    """Process CPU seconds (every thread's: time.process_time) and wall seconds per named stage, summed over the
+    stage's uses; what a frame's benchmark reports (examples/benchmark_frame_cost.py). Stages may nest: each
+    counts its own time, the inner stage's included."""
+
+    def __init__(self):
+        self.stages = {}  # name -> [cpu seconds, wall seconds]
+
+    def stage(self, name):
+        return _ClockedStage(self, name)
+
+    def add(self, name, cpu_seconds, wall_seconds):
+        entry = self.stages.setdefault(name, [0.0, 0.0])
+        entry[0] += cpu_seconds
+        entry[1] += wall_seconds
+
+
+class _ClockedStage:
+    def __init__(self, clock, name):
+        self.clock, self.name = clock, name
+
+    def __enter__(self):
+        self.cpu, self.wall = time.process_time(), time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        self.clock.add(self.name, time.process_time() - self.cpu, time.perf_counter() - self.wall)
+        return False

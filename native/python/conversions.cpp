@@ -163,6 +163,13 @@ py::dict film_to_dict(Film&& film) {
     d["gaussian_group_candidates"] = film.stats.gaussian_group_candidates;
     d["camera_ray_splatting"] = film.stats.camera_ray_splatting;
     d["splat_prepass_seconds"] = film.stats.splat_prepass_seconds;
+    d["splat_prepass_cpu_seconds"] = film.stats.splat_prepass_cpu_seconds;
+    d["build_seconds"] = film.stats.build_seconds;
+    d["build_cpu_seconds"] = film.stats.build_cpu_seconds;
+    d["sample_seconds"] = film.stats.sample_seconds;
+    d["sample_cpu_seconds"] = film.stats.sample_cpu_seconds;
+    d["film_seconds"] = film.stats.film_seconds;
+    d["film_cpu_seconds"] = film.stats.film_cpu_seconds;
     d["splats"] = film.stats.splats;
     d["splat_tile_entries"] = film.stats.splat_tile_entries;
     d["splat_bytes"] = film.stats.splat_bytes;

@@ -16,6 +16,7 @@ class RaySplatsRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.viewport_state = viewport.ViewportState()
+        self.persistent_scene = None  # final.py: the last frame's scene, kept with Persistent Data
 
     def _fail(self, error):
         """Reports an exception of an entry point (errors.report_exception) and shows it in the render window."""

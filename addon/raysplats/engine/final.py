@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from .. import native
+from .. import native, progress
 from . import passes, sync
 
 POLL_SECONDS = 0.05
@@ -18,8 +18,43 @@ UPDATE_SECONDS = 1.0
 # (with its time from the render's start), and the samples and cancel state of the image kept, its mean samples per
 # pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h), and
 # whether camera-ray splatting drew the camera rays (with its pre-pass's time).
+# `stages`: CPU and wall seconds of each stage of the frame (read, convert, scene, bvh, prepass, samples, film,
+# write); `entered`, `left`: (process CPU, wall) clocks when render() was called and when it returned; `scene`: how
+# the frame got its native scene ("new", or with Persistent Data "kept" when nothing in it changed, "updated" when
+# changes were applied to the last frame's).
 last_render = {"partial_results": [], "samples": 0, "cancelled": False, "mean_samples": 0.0, "camera_rays": 0,
-               "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "splat_prepass_seconds": 0.0}
+               "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "splat_prepass_seconds": 0.0,
+               "stages": {}, "entered": None, "left": None, "scene": "new"}
+
+
+def _frame_scene(engine, depsgraph, clock):
+    """The frame's sync.SceneSync and how it was had ("new", "kept", "updated"). With Persistent Data
+    (Render Properties > Performance, `render.use_persistent_data`) Blender keeps this engine and its depsgraph from
+    frame to frame (and from one F12 to the next) and reports what changed in between (depsgraph.updates), as for
+    Cycles: the last frame's scene is kept, the changes applied in place (a moved object moves its instances, an
+    edited one is recovered again and only its BVH rebuilt), and a change it cannot apply in place (an object added
+    or removed, a material, light or world changed) builds the scene anew. Without it nothing is kept: Blender frees
+    the engine, and this scene with it, after the frame."""
+    warn = lambda m: engine.report({"WARNING"}, m)  # noqa: E731
+    persistent = depsgraph.scene.render.use_persistent_data
+    key = (depsgraph.scene.original.as_pointer(), depsgraph.view_layer.name)
+    kept, engine.persistent_scene = getattr(engine, "persistent_scene", None), None
+    scene_sync, how = None, "new"
+    if persistent and kept is not None and kept[0] == key:
+        scene_sync = kept[1]
+        scene_sync.clock = clock
+        with clock.stage("read"):
+            change = scene_sync.update(depsgraph)
+        if change == "rebuild":
+            scene_sync = None
+        else:
+            how = "kept" if change == "none" else "updated"
+    kept = None  # (a scene built anew does not share the memory of the one it replaces)
+    if scene_sync is None:
+        scene_sync = sync.SceneSync(depsgraph, warn, clock=clock)
+    if persistent:
+        engine.persistent_scene = (key, scene_sync)
+    return scene_sync, how
 
 
 def _border(scene, width, height):
@@ -36,6 +71,7 @@ def _border(scene, width, height):
 
 
 def render_final(engine, depsgraph):
+    entered = (time.process_time(), time.perf_counter())
     scene = depsgraph.scene
     if scene.camera is None:
         raise ValueError("The scene has no camera: set one in Scene Properties to render")
@@ -44,11 +80,14 @@ def render_final(engine, depsgraph):
     settings = scene.raysplats
 
     engine.update_stats("", "Syncing scene")
+    clock = progress.StageClock()
     t0 = time.perf_counter()
-    render_scene, stats = sync.build_render_scene(depsgraph, warn=lambda m: engine.report({"WARNING"}, m))
+    scene_sync, how = _frame_scene(engine, depsgraph, clock)
+    render_scene, stats = scene_sync.render_scene, scene_sync.stats
     t_sync = time.perf_counter() - t0
     engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | Building BVH")
-    render_scene.build(settings.gaussian_mode)
+    with clock.stage("bvh"):
+        render_scene.build(settings.gaussian_mode)
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
     render_settings = sync.render_settings(scene, width, height, settings.samples, adaptive=True)
 
@@ -99,7 +138,8 @@ def render_final(engine, depsgraph):
             # Information, not a warning: with the setting on by default, every Lit render would otherwise warn.
             engine.report({"INFO"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
                                      "this render's camera rays were ray traced")
-        passes.write_passes(result.layers[0], film, rows, cols)
+        with clock.stage("write"):
+            passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
         # Any failure (the job refused, a pass Blender refuses, an error in the loop): the render thread stops now
         # rather than when the traceback lets the job go, and no half-written result is left open in Blender.
@@ -107,7 +147,12 @@ def render_final(engine, depsgraph):
             job.cancel()
         engine.end_result(result, cancel=True)
         raise
-    engine.end_result(result)
+    with clock.stage("write"):
+        engine.end_result(result)
+    for stage, prefix in (("prepass", "splat_prepass"), ("samples", "sample"), ("film", "film")):
+        clock.add(stage, film[prefix + "_cpu_seconds"], film[prefix + "_seconds"])
+    last_render.update(stages={name: tuple(values) for name, values in clock.stages.items()}, scene=how,
+                       entered=entered, left=(time.process_time(), time.perf_counter()))
     last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples,
                        camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"],
                        camera_ray_splatting=film["camera_ray_splatting"],

@@ -1,10 +1,12 @@
 # Depsgraph -> native RenderScene: meshes (modifiers applied, instances included), Gaussian objects recovered
 # from their evaluated meshes, materials (materials.py), lights in Blender units, the world and the camera.
 
+import collections
+
 import bpy
 import numpy as np
 
-from .. import errors, native
+from .. import errors, native, progress
 from ..blender import compat, mesh_read
 from ..objects import color_adjustment, compact_points, polygon_mesh, splat_object
 from ..blender.material_reader import input_value
@@ -148,8 +150,11 @@ class SceneSync:
     moves instances; an edited or moved mesh object replaces its mesh. Gaussian clouds are recovered in the
     object's own frame and placed by its world matrix, so moving an object costs no recovery."""
 
-    def __init__(self, depsgraph, warn=None, interactive=False):
+    def __init__(self, depsgraph, warn=None, interactive=False, clock=None):
         self.core = native.core()
+        # CPU and wall seconds of reading Blender's data ("read"), recovering Gaussians ("convert") and handing
+        # arrays to the core ("scene"), summed over objects.
+        self.clock = clock if clock is not None else progress.StageClock()
         self.render_scene = self.core.RenderScene()
         if interactive:
             self.render_scene.set_interactive(True)
@@ -280,8 +285,10 @@ class SceneSync:
         render_scene, stats = self.render_scene, self.stats
         materials = MaterialTable(render_scene, self._warn_once)
         mesh_cache = {}
+        self.membership = collections.Counter()
         for instance in depsgraph.object_instances:
             obj = instance.object
+            self.membership[(obj.original.as_pointer(), instance.is_instance)] += 1
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             kind = splat_object.kind_of(obj)
@@ -289,14 +296,19 @@ class SceneSync:
                 for message in splat_object.fidelity_warnings(obj.original, for_render=not self.interactive):
                     self._warn_once(message)
                 if kind == splat_object.POLYGONS:
-                    source = self._read(obj, None if instance.is_instance else depsgraph)
-                    cloud = self._recover(obj, source)
+                    with self.clock.stage("read"):
+                        source = self._read(obj, None if instance.is_instance else depsgraph)
+                    with self.clock.stage("convert"):
+                        cloud = self._recover(obj, source)
                 else:
-                    source, cloud = None, self._compact_cloud(obj)
+                    with self.clock.stage("read"):
+                        source, cloud = None, self._compact_cloud(obj)
                 if cloud is None or not len(cloud["opacities"]):
                     continue
-                index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
-                                                   cloud["opacities"], cloud["sh"], np.array(matrix, dtype=np.float32))
+                with self.clock.stage("scene"):
+                    index = render_scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"],
+                                                       cloud["opacities"], cloud["sh"],
+                                                       np.array(matrix, dtype=np.float32))
                 stats.splats += len(cloud["opacities"])
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
                 if uid is None:
@@ -308,12 +320,14 @@ class SceneSync:
                 else:
                     self.compact[uid] = (index, len(cloud["opacities"]))
             elif obj.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
-                arrays = self._mesh_arrays(obj, materials, mesh_cache)
+                with self.clock.stage("read"):
+                    arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
                     continue
                 vertices, triangles, face_materials, uvs = arrays
-                index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                              face_materials=face_materials, uvs=uvs)
+                with self.clock.stage("scene"):
+                    index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
+                                                  face_materials=face_materials, uvs=uvs)
                 stats.triangles += len(triangles)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
@@ -359,6 +373,13 @@ class SceneSync:
         face_materials = material_indices[np.minimum(slots, len(material_indices) - 1)]
         return vertices, triangles, face_materials, uvs
 
+    @staticmethod
+    def _membership(depsgraph):
+        """The objects the depsgraph draws (original pointers) and how many times each, as `membership` records them
+        when the scene is built: a collection update that leaves them as they were changes nothing of the scene."""
+        return collections.Counter((instance.object.original.as_pointer(), instance.is_instance)
+                                   for instance in depsgraph.object_instances)
+
     # Datablocks whose changes the in-place update cannot express: the scene is built again.
     _REBUILD_TYPES = (bpy.types.Material, bpy.types.World, bpy.types.Light, bpy.types.Image, bpy.types.NodeTree,
                       bpy.types.Collection)
@@ -376,7 +397,14 @@ class SceneSync:
             return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
-        return data.type != "CAMERA"  # the view's camera is not part of the scene
+        # Objects the scene holds nothing of: the camera (not part of the scene), and those whose changes reach it
+        # through the objects they move or deform, which report their own updates (the empty a split import's
+        # pieces hang from, an armature, a lattice), unless they instance a collection.
+        if data.type == "EMPTY":
+            return data.instance_type != "NONE"
+        return data.type not in self._UNDRAWN_TYPES
+
+    _UNDRAWN_TYPES = frozenset({"CAMERA", "ARMATURE", "LATTICE", "SPEAKER", "LIGHT_PROBE", "LIGHTPROBE"})
 
     def update(self, depsgraph):
         """Applies the depsgraph's changes in place. Returns "none", "updated" or "rebuild" (the caller makes a new
@@ -387,6 +415,8 @@ class SceneSync:
             if not self.changes_scene(update):
                 continue
             data = update.id
+            if isinstance(data, bpy.types.Collection) and self._membership(depsgraph) == self.membership:
+                continue  # (Blender 4+ reports the scene's collection at every frame change)
             if isinstance(data, self._REBUILD_TYPES):
                 return "rebuild"
             uid = data.original.as_pointer()

@@ -103,6 +103,42 @@ class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
         column.prop(context.scene.raysplats, "caustics_refractive", text="Refractive")
 
 
+class RAYSPLATS_RENDER_PT_performance(RaySplatsPanel, bpy.types.Panel):
+    """Blender's own settings where Cycles shows them (Render Properties > Performance): the thread count of final
+    renders and Persistent Data, which keeps the scene and its BVH from frame to frame (final.py)."""
+    bl_label = "Performance"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        pass
+
+
+class RAYSPLATS_RENDER_PT_performance_threads(RaySplatsPanel, bpy.types.Panel):
+    bl_label = "Threads"
+    bl_parent_id = "RAYSPLATS_RENDER_PT_performance"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        render = context.scene.render
+        layout.prop(render, "threads_mode")
+        sub = layout.column(align=True)
+        sub.enabled = render.threads_mode == "FIXED"
+        sub.prop(render, "threads")
+
+
+class RAYSPLATS_RENDER_PT_performance_final_render(RaySplatsPanel, bpy.types.Panel):
+    bl_label = "Final Render"
+    bl_parent_id = "RAYSPLATS_RENDER_PT_performance"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.render, "use_persistent_data", text="Persistent Data")
+
+
 # The Scene.raysplats settings the panels above lay out; any other (a render setting just added to the core and to
 # render_properties.py) is shown by the Other Settings panel until it is given its place.
 LAID_OUT_SETTINGS = frozenset({
@@ -170,7 +206,9 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
 
 
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_film,
-            RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_other,
+            RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
+            RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
+            RAYSPLATS_RENDER_PT_other,
             RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)
 
 

@@ -14,6 +14,7 @@
 #include <tbb/parallel_for.h>
 
 #include "camera_splatting.h"
+#include "core/process_clock.h"
 #include "gaussian_segment_tracer.h"
 #include "path_integrator.h"
 #include "pixel_filter.h"
@@ -57,10 +58,9 @@ std::unique_ptr<const CameraSplatting> prepare_splatting(const Scene::Impl& impl
                                                          const std::atomic<bool>* cancel, RenderStats& stats) {
     std::unique_ptr<const CameraSplatting> splatting;
     if (!CameraSplatting::applies(impl, settings, camera, tracer.shader())) return splatting;
-    const auto prepass_start = std::chrono::steady_clock::now();
+    PhaseClock clock(stats.splat_prepass_seconds, stats.splat_prepass_cpu_seconds);
     splatting = std::make_unique<const CameraSplatting>(impl, settings, camera, shadow, cancel);
-    stats.splat_prepass_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - prepass_start).count();
+    clock.stop();
     stats.camera_ray_splatting = true;
     stats.splats = splatting->splat_count();
     stats.splat_tile_entries = splatting->tile_entry_count();
@@ -203,10 +203,12 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     settings.validate();
     camera.validate();
     const auto start = std::chrono::steady_clock::now();
+    Film film;
+    PhaseClock build_clock(film.stats.build_seconds, film.stats.build_cpu_seconds);
     scene.build(settings.gaussian_mode);
+    build_clock.stop();
     const Scene::Impl& impl = scene.impl();
 
-    Film film;
     film.allocate(settings.width, settings.height);  // every pixel is written at the end (or by a snapshot)
     const int w = settings.width, h = settings.height;
     const TileGrid grid(render_region_of(settings), settings.tile_size);
@@ -237,24 +239,31 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     // the order of its sums are those of a tile-by-tile loop, so the image is the same bit for bit.
     // With adaptive sampling, pixels drop out at the checks; once none samples on, the render ends early.
     int samples_done = 0;
+    RenderStats& stats = film.stats;
     for (int sample = 0; sample < settings.samples; ++sample) {
+        PhaseClock sample_clock(stats.sample_seconds, stats.sample_cpu_seconds);
         render_pass(sample, grid, sampler, adaptive.on(), tiles, pass_progress, counters);
         // A pass counts when every tile finished it, even if a cancel came after the last one did.
-        if (pass_progress.tile_passes_done() < (long long)(sample + 1) * grid.count) break;
-        samples_done = sample + 1;
+        const bool complete = pass_progress.tile_passes_done() >= (long long)(sample + 1) * grid.count;
+        if (complete) samples_done = sample + 1;
         // Cycles checks after every kAdaptiveStep samples once the minimum is reached (AdaptiveSampling::need_filter).
         // Once no pixel samples on, the render has converged.
-        if (adaptive.on() && samples_done % kAdaptiveStep == 0 && samples_done >= adaptive.min_samples &&
-            samples_done < settings.samples &&
-            !update_sampling_mask(grid.region, w, noise_threshold, tiles, sampling, noisy))
-            break;
+        const bool converged = complete && adaptive.on() && samples_done % kAdaptiveStep == 0 &&
+                               samples_done >= adaptive.min_samples && samples_done < settings.samples &&
+                               !update_sampling_mask(grid.region, w, noise_threshold, tiles, sampling, noisy);
+        sample_clock.stop();
+        if (!complete || converged) break;
         if (pass_done && samples_done < settings.samples) {
+            PhaseClock film_clock(stats.film_seconds, stats.film_cpu_seconds);
             write_film(film, tiles, grid, settings.transparent_background);
+            film_clock.stop();
             film.stats.samples = samples_done;
             pass_done(film);
         }
     }
+    PhaseClock film_clock(stats.film_seconds, stats.film_cpu_seconds);
     write_film(film, tiles, grid, settings.transparent_background);
+    film_clock.stop();
 
     film.stats.cancelled = pass_progress.was_cancelled();
     film.stats.samples = samples_done;

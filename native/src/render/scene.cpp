@@ -358,8 +358,11 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
     for (auto& gp : gaussians) {
         GaussianSet& g = *gp;
         if (g.dirty == GaussianSet::Dirty::Data || g.dirty == GaussianSet::Dirty::Rows) {
-            const std::vector<char> changed =
-                g.dirty == GaussianSet::Dirty::Data ? g.prepare(mode, true) : g.prepare_rows(g.changed_rows);
+            // New data keeps the primitives' order only in an interactive scene, where it spares the chunks whose
+            // Gaussians did not change; a scene of one chunk per cloud rebuilds it anyway, and ordering it afresh
+            // makes it the very scene build_all would make (the same groups, so the same image to the last bit).
+            const std::vector<char> changed = g.dirty == GaussianSet::Dirty::Data ? g.prepare(mode, interactive)
+                                                                                  : g.prepare_rows(g.changed_rows);
             for (std::size_t k = 0; k < g.chunks.size(); ++k) {
                 if (!changed[k]) continue;
                 g.update_geometry(g.chunks[k]);  // regrouped; the chunk's BVH is rebuilt

@@ -96,6 +96,13 @@ struct RenderStats {
     std::uint64_t splats = 0;
     std::uint64_t splat_tile_entries = 0;
     std::uint64_t splat_bytes = 0;
+    // Where render_seconds went, in wall seconds and in the process's CPU seconds (every thread's, so what other
+    // threads of the process do meanwhile counts too): the scene's build when render() had to do it, the camera-ray
+    // splatting pre-pass, the sample passes (adaptive sampling's checks included) and writing the film.
+    double build_seconds = 0.0, build_cpu_seconds = 0.0;
+    double splat_prepass_cpu_seconds = 0.0;
+    double sample_seconds = 0.0, sample_cpu_seconds = 0.0;
+    double film_seconds = 0.0, film_cpu_seconds = 0.0;
 };
 
 // Rows are stored top to bottom (row 0 is the top of the image), pixels left to right; a channel with C components
