@@ -108,12 +108,13 @@ def edit_piece(obj):
         obj.data.vertices.foreach_get("co", co)
         co[:300] += 0.01
         obj.data.vertices.foreach_set("co", co)
+        obj.data.update()
     else:
         co = np.empty(len(obj.data.points) * 3, dtype=np.float32)
         obj.data.attributes["position"].data.foreach_get("vector", co)
         co[:300] += 0.01
         obj.data.attributes["position"].data.foreach_set("vector", co)
-    obj.data.update()
+    obj.data.update_tag()
 
 
 out = args.out or os.path.join(os.environ.get("TMPDIR", "/tmp"), "raysplats_frame_cost")
