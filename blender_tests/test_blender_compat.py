@@ -48,6 +48,7 @@ EXPECTED = {
     "IMAGE_FORMAT_HAS_MEDIA_TYPE": since((5, 0), True, False),
     "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
     "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
+    "RENDER_PASS_BULK_SET": since((4, 2), True, False),
     "NEWER_THAN_TESTED": since((5, 2), False, False),  # every Blender in this table was tested
 }
 # Names in compat.py that are the same on every version (layouts, keys), not probed.

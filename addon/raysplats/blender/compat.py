@@ -206,6 +206,24 @@ _BPY_HEADER = 2 * 8 if _since(5, 2) else 3 * 8
 BPY_BMESH_POINTER_OFFSET = _BPY_HEADER
 BPY_BMELEM_POINTER_OFFSET = _BPY_HEADER + 8
 
+# --- Render results -------------------------------------------------------------------------------------------------
+
+# RenderPass.rect.foreach_set takes the pass's values as one flat float32 buffer and copies it in bulk on 4.2 and
+# later (measured on 4.2 to 5.3: half a millisecond for 640x360 RGBA, read back unchanged); assigning `rect` an array
+# goes through Python sequences, 0.1 s on 4.2 and 0.4 s on 5.3 for the same pass. Blender 3.4's foreach_set refuses a
+# flat buffer (it expects one item per pixel), so there the array is assigned. 3.5 to 4.1 were not tried and take
+# the assignment.
+RENDER_PASS_BULK_SET = _since(4, 2)
+
+
+def set_render_pass(render_pass, values):
+    """Writes `values` (pixels bottom row first, `render_pass.channels` float32 each) into a RenderPass."""
+    if RENDER_PASS_BULK_SET:
+        render_pass.rect.foreach_set(np.ascontiguousarray(values, dtype=np.float32).reshape(-1))
+    else:
+        render_pass.rect = np.ascontiguousarray(values, dtype=np.float32).reshape(-1, render_pass.channels)
+
+
 # --- Operators --------------------------------------------------------------------------------------------------------
 
 # bpy.ops.transform.rotate(value=a, orient_axis=X) turns by TRANSFORM_ROTATE_SIGN * a, right-handed about the axis.

@@ -5,6 +5,7 @@ import bpy
 import numpy as np
 
 from .. import native
+from ..blender import compat
 
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal"}
@@ -54,7 +55,7 @@ def write_passes(render_layer, film, rows, cols):
         # Film rows run top to bottom; Blender's from the bottom up.
         values = film[channel["key"]][rows, cols][::-1]
         values = np.where(np.isfinite(values), values, _FAR)
-        render_pass.rect = np.ascontiguousarray(values, dtype=np.float32).reshape(-1, render_pass.channels)
+        compat.set_render_pass(render_pass, values)
 
 
 def draw_pass_toggles(layout, view_layer):
