@@ -1,8 +1,9 @@
 // Morton order of Gaussian centres (core/morton_order.h).
 #include "core/morton_order.h"
 
+#include "core/radix_sort.h"
+
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <glm/glm.hpp>
 #include <limits>
@@ -33,7 +34,7 @@ std::vector<std::uint32_t> morton_order(const GaussianCloud& c) {
         const std::uint64_t code = spread(std::uint64_t(q.x)) | (spread(std::uint64_t(q.y)) << 1) | (spread(std::uint64_t(q.z)) << 2);
         keyed[i] = (code << 32) | std::uint64_t(i);
     });
-    tbb::parallel_sort(keyed.begin(), keyed.end());
+    sort_by_high_word(keyed);  // (the low words are the indices, ascending)
     std::vector<std::uint32_t> order(n);
     for (std::size_t j = 0; j < n; ++j) order[j] = std::uint32_t(keyed[j] & 0xffffffffu);
     return order;

@@ -7,8 +7,8 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
+#include "core/radix_sort.h"
 #include "gaussian_callbacks.h"
 #include "gaussian_primitives.h"
 #include "pixel_filter.h"
@@ -22,6 +22,7 @@ namespace {
 constexpr float kDilation = 0.3f;           // px^2 added to the 2D covariance's diagonal (3DGS computeCov2D)
 constexpr float kJacobianClamp = 1.3f;      // x/z and y/z clamped to 1.3 x the frustum's half extent (3DGS)
 constexpr float kFootprintSigmas = 3.0f;    // square half side in standard deviations (3DGS getRect's radius)
+constexpr double kTilePadMargin = 1e-3;     // px added to the samples' pad when binning (a margin for rounding)
 
 // Pixels of the pixel filter's reach around a pixel (PixelFilterSampler::reach), rounded up, plus one: camera samples
 // fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of pixels (from the region's corner) each
@@ -77,9 +78,10 @@ CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSet
         throw Error("camera-ray splatting: " + std::to_string(total) + " Gaussians are more than it indexes (2^32 - 1)");
 
     std::vector<std::uint64_t> keys;
-    if (!sorted_keys(set_base, keys, cancel) || is_cancelled(cancel)) return;
+    Projections projected;
+    if (!sorted_keys(set_base, keys, projected, cancel) || is_cancelled(cancel)) return;
     // The camera ray's SH direction is camera -> centre (GaussianSet::display_color with the camera's origin).
-    gather(keys, set_base, settings.blend_space == BlendSpace::Display, cancel);
+    gather(keys, projected, set_base, settings.blend_space == BlendSpace::Display, cancel);
     if (is_cancelled(cancel)) return;
 
     // Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
@@ -176,12 +178,14 @@ bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, Pro
 }
 
 bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
-                                     const std::atomic<bool>* cancel) const {
+                                     Projections& projected, const std::atomic<bool>* cancel) const {
     // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
-    // by scene order), sorted.
+    // by scene order), sorted. The projections are kept for the gather, which would otherwise project every visible
+    // Gaussian a second time (the projection is most of this pass).
     keys.assign(set_base.back(), kNotVisibleKey);
+    projected.resize(set_base.back());
     for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
-        ProjectedSplat ps;
+        ProjectedSplat& ps = projected[set_base[k] + j];
         if (!project(set, std::uint32_t(j), ps)) return;
         std::uint32_t depth_bits;
         std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
@@ -189,12 +193,13 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, s
     });
     if (is_cancelled(cancel)) return false;
     keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
-    tbb::parallel_sort(keys.begin(), keys.end());
+    sort_by_high_word(keys);  // (the low words are the global indices, ascending)
     return true;
 }
 
-void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, const std::vector<std::size_t>& set_base,
-                                bool display, const std::atomic<bool>* cancel) {
+void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, Projections& projected,
+                                const std::vector<std::size_t>& set_base, bool display,
+                                const std::atomic<bool>* cancel) {
     // The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
     // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
     std::vector<std::uint32_t> rank_of(set_base.back(), kNotVisible);
@@ -211,10 +216,12 @@ void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, const std::vec
         if (rank == kNotVisible) return;
         const auto prim = std::uint32_t(j);
         ProjectedSplat& splat = splats_[rank];
-        project(set, prim, splat);
+        splat = projected[set_base[k] + j];
         splat.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
         sources_[rank] = SplatSource{set.index, prim};
     });
+    projected.clear();
+    projected.shrink_to_fit();
 }
 
 // The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
@@ -222,22 +229,28 @@ void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, const std::vec
 // Outside that ellipse every sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps
 // thin and faint Gaussians out of most of their square's tiles. The pad lets a packet read only the lists of its
 // pixels' tile, wherever jitter put its samples (a list per tile a sample fell in cost a packet 2-4 reads).
+CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLists& lists,
+                                                               const ProjectedSplat& ps) const {
+    const int size = lists.size;
+    const float reach_x = ps.half_extent + float(sample_pad_ + kTilePadMargin);
+    return TileSquare{std::max(0, int(std::floor((ps.u - reach_x - float(grid_x0_)) / size))),
+                      std::max(0, int(std::floor((ps.v - reach_x - float(grid_y0_)) / size))),
+                      std::min(lists.nx - 1, int(std::floor((ps.u + reach_x - float(grid_x0_)) / size))),
+                      std::min(lists.ny - 1, int(std::floor((ps.v + reach_x - float(grid_y0_)) / size)))};
+}
+
 template <typename Visit>
 void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const {
     const int size = lists.size;
-    const double pad = sample_pad_ + 1e-3;  // (and a margin for rounding)
-    const float reach_x = ps.half_extent + float(pad);
-    const int tx0 = std::max(0, int(std::floor((ps.u - reach_x - float(grid_x0_)) / size)));
-    const int ty0 = std::max(0, int(std::floor((ps.v - reach_x - float(grid_y0_)) / size)));
-    const int tx1 = std::min(lists.nx - 1, int(std::floor((ps.u + reach_x - float(grid_x0_)) / size)));
-    const int ty1 = std::min(lists.ny - 1, int(std::floor((ps.v + reach_x - float(grid_y0_)) / size)));
+    const double pad = sample_pad_ + kTilePadMargin;
+    const TileSquare sq = tile_square(lists, ps);
     // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
     const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
     const double a = ps.conic[0], b = ps.conic[1], c = ps.conic[2];
     auto q = [&](double dx, double dy) { return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy; };
-    for (int ty = ty0; ty <= ty1; ++ty) {
+    for (int ty = sq.ty0; ty <= sq.ty1; ++ty) {
         const double ly = double(grid_y0_ + ty * size) - ps.v - pad, hy = ly + size + 2.0 * pad;
-        for (int tx = tx0; tx <= tx1; ++tx) {
+        for (int tx = sq.tx0; tx <= sq.tx1; ++tx) {
             const double lx = double(grid_x0_ + tx * size) - ps.u - pad, hx = lx + size + 2.0 * pad;
             // The minimum of the convex q over the tile: 0 when the centre is inside, else on an edge, where q is a
             // parabola in the free coordinate (minimised at -b x / c, or -b y / a, clamped to the edge).
@@ -246,7 +259,7 @@ void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const Projec
                 least = std::min(std::min(q(lx, std::clamp(-b * lx / c, ly, hy)), q(hx, std::clamp(-b * hx / c, ly, hy))),
                                  std::min(q(std::clamp(-b * ly / a, lx, hx), ly), q(std::clamp(-b * hy / a, lx, hx), hy)));
             }
-            if (least <= reach) visit(std::size_t(ty) * lists.nx + tx);
+            if (least <= reach) visit(std::size_t(ty) * lists.nx + tx, (ty - sq.ty0) * sq.width() + (tx - sq.tx0));
         }
     }
 }
@@ -265,11 +278,22 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8
     const std::size_t chunks = std::clamp<std::size_t>(splats_.size() / 256, 1, 16);
     const std::size_t chunk_size = (splats_.size() + chunks - 1) / chunks;
     std::vector<std::uint32_t> starts(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
+    // The tiles each splat reaches are found once: the count pass records them as bits over the splat's square of
+    // tiles (row by row), and the fill pass reads the bits instead of testing the ellipse on every tile again (the
+    // tests were most of the binning). Every fine splat's square fits in 64 tiles; a bigger square is tested again.
+    constexpr int kMaskTiles = 64;
+    std::vector<std::uint64_t, DefaultInitAllocator<std::uint64_t>> reached(splats_.size());
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* count = starts.data() + k * tile_count;
         for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;
-            if (level[i] == which) for_each_tile(lists, splats_[i], [&](std::size_t t) { ++count[t]; });
+            if (level[i] != which) continue;
+            std::uint64_t bits = 0;
+            for_each_tile(lists, splats_[i], [&](std::size_t t, int bit) {
+                ++count[t];
+                if (bit < kMaskTiles) bits |= std::uint64_t(1) << bit;
+            });
+            reached[i] = bits;
         }
     });
     if (is_cancelled(cancel)) return;
@@ -288,10 +312,17 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8
         std::uint32_t* cursor = starts.data() + k * tile_count;
         for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;  // (the lists unfinished: nothing renders)
-            if (level[i] == which)
-                for_each_tile(lists, splats_[i], [&](std::size_t t) {
-                    lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i);
-                });
+            if (level[i] != which) continue;
+            auto add = [&](std::size_t t) { lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i); };
+            const TileSquare sq = tile_square(lists, splats_[i]);
+            if (sq.count() > kMaskTiles) {
+                for_each_tile(lists, splats_[i], [&](std::size_t t, int) { add(t); });
+                continue;
+            }
+            for (std::uint64_t bits = reached[i]; bits != 0; bits &= bits - 1) {
+                const int bit = __builtin_ctzll(bits);
+                add(std::size_t(sq.ty0 + bit / sq.width()) * lists.nx + std::size_t(sq.tx0 + bit % sq.width()));
+            }
         }
     });
 }

@@ -17,6 +17,7 @@
 
 #include <glm/glm.hpp>
 
+#include "raysplats/default_init_allocator.h"
 #include "raysplats/render/camera.h"
 #include "raysplats/render/render_settings.h"
 #include "scene_impl.h"
@@ -82,15 +83,24 @@ private:
     void set_up_grids(const RenderSettings& settings);
     // Projects Gaussian `prim` of `set`: false when it is culled (near, far, faint, degenerate, off the grid).
     bool project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const;
-    // The visible Gaussians' keys, depth above global index (set_base[k] + j: primitive j of set k), sorted; false
-    // when cancelled.
+    // Every Gaussian projected once, by global index (set_base[k] + j: primitive j of set k; the culled ones' entries
+    // unwritten), and the visible Gaussians' keys, depth above global index, sorted; false when cancelled.
+    using Projections = std::vector<ProjectedSplat, DefaultInitAllocator<ProjectedSplat>>;
     bool sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
-                     const std::atomic<bool>* cancel) const;
+                     Projections& projected, const std::atomic<bool>* cancel) const;
     // The splats and their sources in the keys' order, with their colours (`display`: in display values); frees
-    // the keys.
-    void gather(std::vector<std::uint64_t>& keys, const std::vector<std::size_t>& set_base, bool display,
-                const std::atomic<bool>* cancel);
-    // Calls visit(t) for every tile t of `lists` where the splat can reach alpha 1/255.
+    // the keys and the projections.
+    void gather(std::vector<std::uint64_t>& keys, Projections& projected, const std::vector<std::size_t>& set_base,
+                bool display, const std::atomic<bool>* cancel);
+    // The tiles of `lists` a splat's square, widened by the samples' pad, covers: columns tx0..tx1, rows ty0..ty1.
+    struct TileSquare {
+        int tx0, ty0, tx1, ty1;
+        int width() const { return tx1 - tx0 + 1; }
+        int count() const { return tx1 < tx0 || ty1 < ty0 ? 0 : width() * (ty1 - ty0 + 1); }
+    };
+    TileSquare tile_square(const SplatTileLists& lists, const ProjectedSplat& ps) const;
+    // Calls visit(t, bit) for every tile t of `lists` where the splat can reach alpha 1/255; bit is the tile's place
+    // in its square, row by row ((ty - ty0) * width + tx - tx0).
     template <typename Visit>
     void for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const;
     // Bins the splats of `level` into `lists` (sized already): only tiles the splat can reach alpha 1/255 in.

@@ -217,7 +217,8 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
     });
     std::vector<std::size_t> base(blocks + 1, 0);
     for (std::uint32_t b = 0; b < blocks; ++b) base[b + 1] = base[b] + specs[b].size();
-    chunk.groups.assign(base[blocks], GaussianGroup{});
+    chunk.groups.clear();
+    chunk.groups.resize(base[blocks]);  // (every field of every group is written below)
     chunk.group_bounds.resize(base[blocks]);
     tbb::parallel_for(std::uint32_t(0), blocks, [&](std::uint32_t b) {
         for (std::size_t k = 0; k < specs[b].size(); ++k) {

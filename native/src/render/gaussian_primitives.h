@@ -14,6 +14,7 @@
 #include <embree3/rtcore.h>
 #include <glm/glm.hpp>
 
+#include "raysplats/default_init_allocator.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/render/scene.h"
 #include "raysplats/render/transform.h"
@@ -53,8 +54,10 @@ struct alignas(32) GaussianGroup {
     // Squared Mahalanobis radius within which the Gaussian can reach alpha 1/255 (at most 9): lanes beyond it are
     // rejected by the SIMD test, before any exp (0 for padding lanes).
     float support[kGroupWidth];
-    std::uint32_t first = 0;       // chunk-local index of lane 0
-    std::uint32_t count = 0;       // Gaussians in the group, lanes [0, count)
+    // (No default member initialisers: the groups are allocated without being written, so that build_groups' parallel
+    // fill is the first touch of their pages; GaussianGroup{} is still all zeros.)
+    std::uint32_t first;           // chunk-local index of lane 0
+    std::uint32_t count;           // Gaussians in the group, lanes [0, count)
 };
 
 // One Gaussian cloud in the scene. Primitives are in the cloud's own (object) frame and split into chunks of
@@ -67,7 +70,7 @@ struct GaussianChunk {
     std::uint32_t offset = 0, count = 0;  // primitives [offset, offset + count) of the set
     RTCScene scene = nullptr;
     RTCGeometry geometry = nullptr;        // the user geometry inside `scene` (owned by it)
-    std::vector<GaussianGroup> groups;     // the geometry's primitives (GaussianSet::build_groups)
+    std::vector<GaussianGroup, DefaultInitAllocator<GaussianGroup>> groups;  // the geometry's primitives (build_groups)
     std::vector<RTCBounds> group_bounds;   // their Embree bounds
     unsigned instance_id = RTC_INVALID_GEOMETRY_ID;  // geomID of the instance in the top-level scene
 };
@@ -85,7 +88,7 @@ struct GaussianSet {
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
     // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
     // chunks are compact in space.
-    std::vector<GaussianPrimitive> prims;
+    std::vector<GaussianPrimitive, DefaultInitAllocator<GaussianPrimitive>> prims;  // (written by prepare, in parallel)
     std::vector<std::uint32_t> cloud_index;  // primID -> index in the cloud
     std::vector<std::uint32_t> prim_index;   // index in the cloud -> primID (the inverse permutation)
     std::vector<float> linear_rgb;        // degree 0: colour (linear) precomputed per primitive
