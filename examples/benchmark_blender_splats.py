@@ -30,6 +30,9 @@ parser.add_argument("--noise", choices=("reference", "seeds"), default="referenc
                          "RMS difference of two renders with different seeds over sqrt 2 (each pixel's standard "
                          "deviation: no reference, so neither its own noise nor either engine's bias enters), then "
                          "the Cycles samples and CPU seconds at RaySplats' one-sample noise, rendered to confirm")
+parser.add_argument("--confirm-max", type=int, default=128,
+                    help="--noise seeds: the most Cycles samples rendered to confirm equal noise; beyond it the count "
+                         "and its CPU seconds are extrapolated from the measured rows")
 args = parser.parse_args()
 
 import bpy  # noqa: E402
@@ -126,7 +129,9 @@ viewer = ewa.rasterize(splats, world_to_view, fx, fx, args.width, args.height, n
 save_png(viewer, "viewer")
 
 results = {"scene": args.scene, "size": [args.width, args.height], "load": os.getloadavg(), "noise": args.noise,
-           "engines": {}}
+           "cpu": next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")),
+                       "?") if os.path.exists("/proc/cpuinfo") else "?",
+           "blender": bpy.app.version_string, "engines": {}}
 
 
 def measure(engine, samples):
@@ -153,14 +158,39 @@ for engine, counts in (("RAYSPLATS", args.raysplats_samples), ("CYCLES", args.cy
     entry["rows"] = [measure(engine, samples) for samples in counts]
 
 if args.noise == "seeds":
-    # Cycles' noise against its samples is a power law (Monte Carlo: about samples^-0.5); its CPU seconds a fixed
-    # cost plus a cost per sample. Both fitted to the rows, the count at RaySplats' one-sample noise is rendered.
-    rows = results["engines"]["CYCLES"]["rows"]
-    slope, intercept = np.polyfit(np.log([r["samples"] for r in rows]), np.log([r["noise"] for r in rows]), 1)
+    # Cycles' first sample goes through the pixel's centre whatever the seed (its camera ray's filter sample is fixed
+    # at sample 0), so with nothing else random in the scene (no lights, a black world) a 1-sample render is the same
+    # for every seed and its rows' noise is 0: only the rows with random samples count.
+    rows = [r for r in results["engines"]["CYCLES"]["rows"] if r["noise"] > 0]
+    if len(rows) < 2:
+        sys.exit("--noise seeds needs two Cycles sample counts above 1 (--cycles-samples)")
     target = results["engines"]["RAYSPLATS"]["rows"][0]
-    needed = int(np.ceil(np.exp((np.log(target["noise"]) - intercept) / slope)))
-    confirm = measure("CYCLES", needed)
-    results["equal_noise"] = {"raysplats": target, "cycles_slope": round(float(slope), 3), "cycles": confirm,
+
+    def samples_at(noise, slope, samples, at):
+        """The sample count where a power law of this slope through (samples, at) reaches `noise`."""
+        return int(np.ceil(samples * (noise / at) ** (1.0 / slope)))
+
+    # Cycles' noise against its samples is a power law whose slope steepens with the count (towards -0.5 and
+    # beyond, as the fixed first sample weighs less), so the slope between the two largest counts gives the fewer
+    # samples and the slope of a fit through every row the more: the equal-noise count lies about between them.
+    last, before = rows[-1], rows[-2]
+    local_slope = float(np.log(last["noise"] / before["noise"]) / np.log(last["samples"] / before["samples"]))
+    fit_slope, fit_intercept = np.polyfit(np.log([r["samples"] for r in rows]), np.log([r["noise"] for r in rows]), 1)
+    needed = samples_at(target["noise"], local_slope, last["samples"], last["noise"])
+    needed_by_fit = samples_at(target["noise"], fit_slope, 1, float(np.exp(fit_intercept)))
+    if needed <= args.confirm_max:
+        confirm = measure("CYCLES", needed)
+    else:
+        # Too many samples to render here: the CPU seconds from a straight line through the rows (a fixed cost per
+        # frame plus a cost per sample).
+        cost, fixed = np.polyfit([r["samples"] for r in rows], [r["cpu_seconds"] for r in rows], 1)
+        confirm = {"samples": needed, "cpu_seconds": round(float(fixed + cost * needed), 1), "extrapolated": True,
+                   "cpu_seconds_per_sample": round(float(cost), 3),
+                   "samples_by_fit": needed_by_fit,
+                   "cpu_seconds_by_fit": round(float(fixed + cost * needed_by_fit), 1)}
+        print("CYCLES (extrapolated)", confirm, flush=True)
+    results["equal_noise"] = {"raysplats": target, "cycles_local_slope": round(local_slope, 3),
+                              "cycles_fit_slope": round(float(fit_slope), 3), "cycles": confirm,
                               "cpu_ratio": round(confirm["cpu_seconds"] / target["cpu_seconds"], 1)}
     print("equal noise", results["equal_noise"], flush=True)
 
@@ -176,6 +206,7 @@ if args.lit:
         save_png(image, f"{engine.lower()}_lit")
         results[f"{engine.lower()}_lit_cpu_seconds"] = round(seconds, 2)
 
+results["load_at_end"] = os.getloadavg()
 with open(os.path.join(args.out, "results.json"), "w") as f:
     json.dump(results, f, indent=1)
 print(json.dumps(results, indent=1))
