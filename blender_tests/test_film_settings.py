@@ -40,6 +40,8 @@ def drawn_settings(panel_class, context):
     """The Scene.raysplats properties a render panel draws."""
     panel = type("Panel", (), {"layout": _RecordingLayout()})()
     panel_class.draw(panel, context)
+    if hasattr(panel_class, "draw_header"):
+        panel_class.draw_header(panel, context)
     return {entry[2] for entry in panel.layout.log if entry[:2] == ("prop", "RaySplatsRenderSettings")}
 
 
@@ -57,8 +59,8 @@ class FilmSettings(unittest.TestCase):
 
     def test_every_render_setting_is_shown_in_a_panel(self):
         context = bpy.context
-        panels = (ui.RAYSPLATS_RENDER_PT_sampling, ui.RAYSPLATS_RENDER_PT_gaussians, ui.RAYSPLATS_RENDER_PT_film,
-                  ui.RAYSPLATS_RENDER_PT_light_paths)
+        panels = (ui.RAYSPLATS_RENDER_PT_sampling, ui.RAYSPLATS_RENDER_PT_sampling_denoise,
+                  ui.RAYSPLATS_RENDER_PT_gaussians, ui.RAYSPLATS_RENDER_PT_film, ui.RAYSPLATS_RENDER_PT_light_paths)
         laid_out = set().union(*(drawn_settings(panel, context) for panel in panels))
         self.assertEqual(laid_out, set(ui.LAID_OUT_SETTINGS))
         properties = {p.identifier for p in context.scene.raysplats.bl_rna.properties} - {"rna_type", "name"}

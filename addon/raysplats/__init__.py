@@ -17,7 +17,7 @@ bl_info = {
 # The modules in dependency order (each after those it imports), so that "Reload Scripts" reloads them in place.
 _MODULE_NAMES = (
     "native", "errors", "progress",
-    "blender.compat", "blender.mesh_read", "blender.mesh_memory", "blender.material_reader",
+    "blender.compat", "blender.mesh_read", "blender.mesh_memory", "blender.material_reader", "blender.denoiser",
     "objects.axes", "objects.color_adjustment", "objects.object_settings", "objects.polygon_mesh",
     "objects.falloff_material", "objects.blender_splats", "objects.compact_points", "objects.modifier_checks",
     "objects.splat_object", "objects.creation",

@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from .. import native, progress
+from ..blender import denoiser
 from . import passes, sync
 
 POLL_SECONDS = 0.05
@@ -17,14 +18,14 @@ UPDATE_SECONDS = 1.0
 # Diagnostics of the last final render, for status displays and tests: the samples of each partial result shown
 # (with its time from the render's start), and the samples and cancel state of the image kept, its mean samples per
 # pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h), and
-# whether camera-ray splatting drew the camera rays (with its pre-pass's time).
+# whether camera-ray splatting drew the camera rays (with its pre-pass's time), and whether it was denoised.
 # `stages`: CPU and wall seconds of each stage of the frame (read, convert, scene, bvh, prepass, samples, film,
-# write); `entered`, `left`: (process CPU, wall) clocks when render() was called and when it returned; `scene`: how
+# denoise, write); `entered`, `left`: (process CPU, wall) clocks when render() was called and when it returned; `scene`: how
 # the frame got its native scene ("new", or with Persistent Data "kept" when nothing in it changed, "updated" when
 # changes were applied to the last frame's).
 last_render = {"partial_results": [], "samples": 0, "cancelled": False, "mean_samples": 0.0, "camera_rays": 0,
                "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "splat_prepass_seconds": 0.0,
-               "stages": {}, "entered": None, "left": None, "scene": "new"}
+               "stages": {}, "entered": None, "left": None, "scene": "new", "denoised": False}
 
 
 def _frame_scene(engine, depsgraph, clock):
@@ -68,6 +69,20 @@ def _border(scene, width, height):
     x0, x1 = int(f32(render.border_min_x) * f32(width)), int(f32(render.border_max_x) * f32(width))
     y0, y1 = int(f32(render.border_min_y) * f32(height)), int(f32(render.border_max_y) * f32(height))
     return x0, y0, max(1, x1 - x0), max(1, y1 - y0)
+
+
+def _denoise(engine, film, rows, cols):
+    """Denoises the Combined pass's colour in the rendered rectangle, in place (its alpha as rendered), guided by the
+    film's denoising albedo and normal where it has them. False, with a warning, where Blender has no denoiser."""
+    if not denoiser.available():
+        engine.report({"WARNING"}, "Denoise: " + denoiser.UNAVAILABLE)
+        return False
+    region = film["rgba"][rows, cols]
+    guides = {}
+    if "denoising_albedo" in film and "denoising_normal" in film:
+        guides = dict(albedo=film["denoising_albedo"][rows, cols], normal=film["denoising_normal"][rows, cols])
+    region[..., :3] = denoiser.denoise(region, **guides)
+    return True
 
 
 def render_final(engine, depsgraph):
@@ -138,6 +153,10 @@ def render_final(engine, depsgraph):
             # Information, not a warning: with the setting on by default, every Lit render would otherwise warn.
             engine.report({"INFO"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
                                      "this render's camera rays were ray traced")
+        denoised = False
+        if scene.raysplats.use_denoising and film["samples"] > 0:
+            with clock.stage("denoise"):
+                denoised = _denoise(engine, film, rows, cols)
         with clock.stage("write"):
             passes.write_passes(result.layers[0], film, rows, cols)
     except BaseException:
@@ -153,7 +172,7 @@ def render_final(engine, depsgraph):
         clock.add(stage, film[prefix + "_cpu_seconds"], film[prefix + "_seconds"])
     last_render.update(stages={name: tuple(values) for name, values in clock.stages.items()}, scene=how,
                        entered=entered, left=(time.process_time(), time.perf_counter()))
-    last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples,
+    last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples, denoised=denoised,
                        camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"],
                        camera_ray_splatting=film["camera_ray_splatting"],
                        splat_prepass_seconds=film["splat_prepass_seconds"])

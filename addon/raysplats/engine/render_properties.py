@@ -24,6 +24,15 @@ class RaySplatsRenderSettings(bpy.types.PropertyGroup):
                     "sampling. Zero for automatic setting based on noise threshold")
     viewport_samples: IntProperty(name="Viewport Samples", default=16, min=1, max=1 << 12,
                                   description="Samples the viewport accumulates before it stops refining")
+    # Cycles' names (Sampling > Render > Denoise, Sampling > Viewport > Denoise).
+    use_denoising: BoolProperty(
+        name="Denoise", default=False,
+        description="Denoise the final render with OpenImageDenoise once its samples are done (official Blender "
+                    "builds have it; where Blender has none, the render says so and is not denoised)")
+    use_preview_denoising: BoolProperty(
+        name="Denoise Viewport", default=False,
+        description="Denoise the viewport's image with OpenImageDenoise once it has all its samples (where Blender "
+                    "has it)")
     max_bounces: IntProperty(name="Max Bounces", default=4, min=0, max=1024,
                              description="Reflections and refractions followed per path (0: direct light only)")
     caustics_reflective: BoolProperty(

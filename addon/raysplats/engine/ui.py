@@ -1,7 +1,7 @@
 # Render Properties panels of the RaySplats engine, and the Blender panels it is compatible with.
 import bpy
 
-from ..blender import compat
+from ..blender import compat, denoiser
 from . import color_management, passes
 
 ENGINE = "RAYSPLATS"
@@ -50,6 +50,26 @@ class RAYSPLATS_RENDER_PT_sampling(RaySplatsPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(settings, "seed")
         row.prop(settings, "use_animated_seed", text="", icon="TIME")
+
+
+class RAYSPLATS_RENDER_PT_sampling_denoise(RaySplatsPanel, bpy.types.Panel):
+    """As Cycles' Sampling > Render > Denoise: the final render's check box in the header, the viewport's below;
+    greyed out, with the reason, where this Blender has no OpenImageDenoise."""
+    bl_label = "Denoise"
+    bl_parent_id = "RAYSPLATS_RENDER_PT_sampling"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.active = denoiser.available()
+        self.layout.prop(context.scene.raysplats, "use_denoising", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.active = denoiser.available()
+        layout.prop(context.scene.raysplats, "use_preview_denoising", text="Viewport")
+        if not denoiser.available():
+            layout.label(text="This Blender has no OpenImageDenoise", icon="INFO")
 
 
 class RAYSPLATS_RENDER_PT_gaussians(RaySplatsPanel, bpy.types.Panel):
@@ -143,7 +163,7 @@ class RAYSPLATS_RENDER_PT_performance_final_render(RaySplatsPanel, bpy.types.Pan
 # render_properties.py) is shown by the Other Settings panel until it is given its place.
 LAID_OUT_SETTINGS = frozenset({
     "use_adaptive_sampling", "adaptive_threshold", "samples", "adaptive_min_samples", "viewport_samples", "seed",
-    "use_animated_seed", "gaussian_mode", "compositing", "blend_space", "camera_ray_splatting",
+    "use_animated_seed", "use_denoising", "use_preview_denoising", "gaussian_mode", "compositing", "blend_space", "camera_ray_splatting",
     "transmittance_threshold", "gaussian_shading", "meshes_shadow_gaussians", "pixel_filter", "filter_width",
     "max_bounces", "caustics_reflective", "caustics_refractive"})
 
@@ -205,8 +225,8 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
         passes.draw_pass_toggles(self.layout, context.view_layer)
 
 
-_CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_gaussians, RAYSPLATS_RENDER_PT_film,
-            RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
+_CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
+            RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
             RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
             RAYSPLATS_RENDER_PT_other,
             RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)

@@ -12,6 +12,7 @@ import bpy
 import numpy as np
 
 from .. import native
+from ..blender import denoiser
 from . import sync
 
 POLL_SECONDS = 0.05  # how often the timer looks for a newer image (a flag and a counter read; no copies)
@@ -185,13 +186,16 @@ def _start_job(engine, state, scene, camera, width, height, samples, seed_offset
     _start_polling(engine, state)
 
 
-def _take_image(state):
+def _take_image(state, denoise=False):
     """The job's newest Combined film (its result once it has ended, else the newest pass's snapshot, rows top to
-    bottom) and its samples; None when there is nothing newer than what is drawn."""
+    bottom) and its samples; None when there is nothing newer than what is drawn. With `denoise`, a job's result
+    (all its samples) is denoised where Blender has a denoiser."""
     job = state.job
     if job.wait(0.0):
         state.job = None  # (before result(), which raises the render's error: reported once, not every redraw)
         film = job.result()
+        if denoise and film["samples"] > 0 and denoiser.available():
+            film["rgba"][..., :3] = denoiser.denoise(film["rgba"])
     elif job.snapshot_samples > state.shown_samples:
         film = job.snapshot(["rgba"])  # the one channel drawn: a third of a whole film's copy
     else:
@@ -222,7 +226,7 @@ def view_draw(engine, context, depsgraph):
     camera = view_camera(context, width, height)
     settings = sync.render_settings(scene, width, height, scene.raysplats.viewport_samples)
     key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)), camera.get("lens"),
-           camera.get("ortho_scale"), tuple(sorted(settings.items())))
+           camera.get("ortho_scale"), tuple(sorted(settings.items())), scene.raysplats.use_preview_denoising)
     if key != state.key:
         _retire(state)
         # The old image stays on screen until the new one comes, counted as no samples of the new view.
@@ -232,7 +236,7 @@ def view_draw(engine, context, depsgraph):
     elif state.retiring:
         _retire(state)
 
-    image = _take_image(state) if state.job is not None else None
+    image = _take_image(state, scene.raysplats.use_preview_denoising) if state.job is not None else None
     if image is not None:
         rgba, samples = image
         h, w = rgba.shape[:2]
