@@ -15,10 +15,17 @@ from raysplats.engine import final, sync
 DONUT = "donut_sh0.ply"
 
 
+class _Rect(np.ndarray):
+    """A pass's pixels, written as Blender's RenderPass.rect is: assigned, or in bulk by foreach_set (4.2 and later)."""
+
+    def foreach_set(self, values):
+        self.reshape(-1)[:] = values
+
+
 class _Pass:
     def __init__(self, name, channels, pixels):
         self.name, self.channels = name, channels
-        self.rect = np.zeros((pixels, channels), dtype=np.float32)
+        self.rect = np.zeros((pixels, channels), dtype=np.float32).view(_Rect)
 
 
 class _Passes(dict):
