@@ -8,7 +8,9 @@ from .. import native
 from ..blender import compat
 
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
-_BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal"}
+_BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
+                    "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
+                    "IndexMA": "use_pass_material_index"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
