@@ -282,6 +282,10 @@ class GaussianDataPasses(unittest.TestCase):
 
 
 class PassesAreOptIn(unittest.TestCase):
+    def test_blender_draws_the_mist_settings(self):
+        # World > Mist Pass is Blender's own panel, declared compatible (engine/ui.py).
+        self.assertIn("RAYSPLATS", bpy.types.EEVEE_WORLD_PT_mist.COMPAT_ENGINES)
+
     def test_only_the_checked_data_passes_are_written(self):
         scene = mesh_scene("LINEAR")
         view_layer = bpy.context.view_layer

@@ -48,6 +48,11 @@ def register_passes(engine, scene, view_layer):
                                  channel["components"], channel["kind"])
 
 
+def written_keys(render_layer):
+    """The keys of the film channels the render layer has passes for: what write_passes writes."""
+    return [channel["key"] for channel in channels() if render_layer.passes.get(channel["pass_name"]) is not None]
+
+
 def write_passes(render_layer, film, rows, cols):
     """Writes every pass the render layer has from the film (rows top to bottom), one bulk write each."""
     for channel in channels():
