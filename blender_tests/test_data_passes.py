@@ -200,11 +200,13 @@ def gaussian_scene(kind, falloff="LINEAR", orthographic=True):
 
 def gaussian_alpha(px, py):
     """The alpha of the Gaussian layer at points (px, py) of its plane: its Gaussians' alphas as the core clamps
-    them, composited (they lie in one plane, at one distance)."""
+    and cuts them (at Mahalanobis radius 3, src/render/gaussian_primitives.h), composited (they lie in one plane, at
+    one distance)."""
     transmittance = np.ones_like(px)
     for cx, cy, _ in CENTRES:
-        a = OPACITY * np.exp(-0.5 * ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2)
-        transmittance *= 1.0 - np.where(a < 1.0 / 255.0, 0.0, np.minimum(a, 0.99))
+        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2
+        a = OPACITY * np.exp(-0.5 * r2)
+        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
     return 1.0 - transmittance
 
 
@@ -218,7 +220,11 @@ class GaussianDataPasses(unittest.TestCase):
         on_floor = px < 0.0
         behind = np.where(on_floor, 1.0 - mist_of(distance_to_floor, falloff), 0.0)
         expected_mist = 1.0 - alpha * (1.0 - mist_of(distance_to_layer, falloff)) - (1.0 - alpha) * behind
-        away = np.abs(px) > 0.1  # (the floor's edge is x = 0 on the Gaussians' plane and near it below)
+        # Away from the floor's edge (x = 0 on the Gaussians' plane and near it below) and from the rims of the disks,
+        # where the alpha drops from 0.01 to 0 within the samples' spread.
+        away = np.abs(px) > 0.1
+        for cx, cy, _ in CENTRES:
+            away &= np.abs(((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2 - 9.0) > 0.5
         np.testing.assert_allclose(out["Mist"][away], expected_mist[away], atol=mist_atol)
         # Where the layer's alpha reaches 0.5 it is the surface: its object and material; elsewhere the floor, or
         # nothing. (Away from the 0.5 contour, where the first sample's side is a matter of rounding.)

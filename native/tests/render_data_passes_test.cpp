@@ -64,12 +64,14 @@ RenderSettings pixel_centre_settings(Compositing compositing, int samples) {
     return s;
 }
 
-// The Gaussian layer's alpha at (x, y) of its plane, as the core clamps it.
+// The Gaussian layer's alpha at (x, y) of its plane, as the core clamps and cuts it (its disks end at Mahalanobis
+// radius 3, gaussian_primitives.h).
 double layer_alpha(double x, double y) {
     double transmittance = 1.0;
     for (double cx : {double(kCentreX), -double(kCentreX)}) {
-        double a = kOpacity * std::exp(-0.5 * ((x - cx) * (x - cx) + y * y) / (kSigma * kSigma));
-        a = a < 1.0 / 255.0 ? 0.0 : std::min(a, 0.99);
+        const double r2 = ((x - cx) * (x - cx) + y * y) / (kSigma * kSigma);
+        double a = kOpacity * std::exp(-0.5 * r2);
+        a = a < 1.0 / 255.0 || r2 > 9.0 ? 0.0 : std::min(a, 0.99);
         transmittance *= 1.0 - a;
     }
     return 1.0 - transmittance;
