@@ -93,8 +93,9 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     // Cycles' name for the same debug pass; Cycles divides by the render's samples, this is the count itself.
     {FilmChannel::SampleCount, "sample_count", "Debug Sample Count", "X", "VALUE", SampleCombination::Sum, 0.0f,
      "Debug: samples the pixel received (fewer where adaptive sampling found it converged)", one_sample},
-    // Blender's names and layouts (Cycles' addon engine.py, list_render_passes). Cycles averages mist over the samples
-    // and writes the others from the first sample only (kernel/film/data_passes.h).
+    // Blender's names and layouts (Cycles' addon engine.py, list_render_passes; Blender 5.0 renamed IndexOB and IndexMA,
+    // which the add-on maps). Cycles averages mist over the samples and writes the others from the first sample only
+    // (kernel/film/data_passes.h).
     {FilmChannel::Mist, "mist", "Mist", "Z", "VALUE", SampleCombination::Mean, 0.0f,
      "Mist: 1 - the coverage-weighted sum of 1 - mist(distance) along the camera ray (the World's mist settings; "
      "1: only the world)", mist_of},
