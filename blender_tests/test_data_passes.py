@@ -13,6 +13,7 @@ import numpy as np
 
 import splat_testing as st
 from raysplats.blender import compat
+from raysplats.engine import final
 from raysplats.objects import creation
 
 WIDTH, HEIGHT = 64, 48
@@ -286,6 +287,28 @@ class GaussianDataPasses(unittest.TestCase):
                                            atol=2e-3)
                 if not splatting:
                     np.testing.assert_allclose(out["Position"][splat][:, 2], LAYER_Z, atol=2e-3)
+
+
+class PersistentData(unittest.TestCase):
+    def test_a_changed_pass_index_reaches_the_kept_scene(self):
+        # Render > Performance > Persistent Data keeps the native scene between renders (final.py): a new pass index
+        # of a mesh, a Gaussian object or a material is neither geometry nor transform, and must still reach it.
+        scene = gaussian_scene("COMPACT")
+        scene.render.use_persistent_data = True
+        first = passes(st.render_multilayer_exr("data_passes_persistent_1"))
+        passes(st.render_multilayer_exr("data_passes_persistent_2"))
+        self.assertEqual(final.last_render["scene"], "kept")
+        splats, floor = bpy.data.objects["Splats"], bpy.data.objects["Floor"]
+        splats.pass_index, floor.pass_index = 21, 22
+        second = passes(st.render_multilayer_exr("data_passes_persistent_3"))
+        for old, new in ((GAUSSIAN_OBJECT_INDEX, 21), (3, 22)):
+            self.assertGreater(np.sum(first["IndexOB"] == old), 20)
+            np.testing.assert_array_equal(second["IndexOB"] == new, first["IndexOB"] == old)
+        floor.material_slots[0].material.pass_index = 23
+        splats.material_slots[0].material.pass_index = 24
+        third = passes(st.render_multilayer_exr("data_passes_persistent_4"))
+        np.testing.assert_array_equal(third["IndexMA"] == 23, first["IndexMA"] == 5)
+        np.testing.assert_array_equal(third["IndexMA"] == 24, first["IndexMA"] == GAUSSIAN_MATERIAL_INDEX)
 
 
 class PassesAreOptIn(unittest.TestCase):
