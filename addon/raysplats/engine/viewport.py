@@ -193,7 +193,7 @@ def _take_image(state):
         state.job = None  # (before result(), which raises the render's error: reported once, not every redraw)
         film = job.result()
     elif job.snapshot_samples > state.shown_samples:
-        film = job.snapshot(["rgba"])  # the one channel drawn: a third of a whole film's copy
+        film = job.snapshot(["rgba"])  # the one channel drawn, not the whole film
     else:
         return None
     state.shown_samples = film["samples"]
