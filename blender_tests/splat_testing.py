@@ -1,6 +1,7 @@
 # Shared helpers of the Blender tests: data paths, a fresh scene, and an independent numpy reference of the
 # Gaussian model (covariances, SH evaluation) to check exported files against.
 import os
+import struct
 
 import bpy
 import numpy as np
@@ -154,3 +155,81 @@ def select_faces(obj, faces):
     edit.faces.ensure_lookup_table()
     for face in faces:
         edit.faces[face].select_set(True)
+
+
+def _read_exr_header(data, pos):
+    """One OpenEXR header from byte `pos`: (channels [(name, pixel type)], data window, compression, chunk count,
+    the position after its terminating null byte)."""
+    channels, window, compression, chunks = [], None, None, None
+    while data[pos] != 0:
+        end = data.index(b"\0", pos)
+        name = data[pos:end].decode()
+        type_end = data.index(b"\0", end + 1)
+        (size,) = struct.unpack_from("<i", data, type_end + 1)
+        value = data[type_end + 5:type_end + 5 + size]
+        if name == "channels":
+            at = 0
+            while value[at] != 0:
+                name_end = value.index(b"\0", at)
+                pixel_type = struct.unpack_from("<i", value, name_end + 1)[0]
+                channels.append((value[at:name_end].decode(), pixel_type))
+                at = name_end + 1 + 16
+        elif name == "dataWindow":
+            window = struct.unpack("<4i", value)
+        elif name == "compression":
+            compression = value[0]
+        elif name == "chunkCount":
+            (chunks,) = struct.unpack("<i", value)
+        pos = type_end + 5 + size
+    return channels, window, compression, chunks, pos + 1
+
+
+def read_uncompressed_exr(path):
+    """{channel name: float32 array (rows top to bottom)} of an uncompressed, 32-bit float scanline OpenEXR file,
+    single-part (Blender 3.4-4.x's multilayer files) or multi-part (Blender 5.0's: one part per pass). Written from
+    the OpenEXR file layout (headers, chlist, offset tables, scanline chunks; a multi-part file ends its header list
+    with an empty header and starts each chunk with its part number), not with Blender, so that it checks what
+    Blender wrote."""
+    data = open(path, "rb").read()
+    assert data[:4] == b"\x76\x2f\x31\x01", "not an OpenEXR file"
+    multipart = bool(struct.unpack_from("<I", data, 4)[0] & 0x1000)
+    pos, parts = 8, []
+    while True:
+        channels, window, compression, chunks, pos = _read_exr_header(data, pos)
+        assert compression == 0, "compressed EXR"
+        assert all(t == 2 for _, t in channels), "not 32-bit float"
+        parts.append((channels, window, chunks if multipart else window[3] - window[1] + 1))
+        if not multipart or data[pos] == 0:
+            break
+    pos += 1 if multipart else 0
+    result = {}
+    for part, (channels, window, chunks) in enumerate(parts):
+        width, height = window[2] - window[0] + 1, window[3] - window[1] + 1
+        offsets = struct.unpack_from(f"<{chunks}Q", data, pos)
+        pos += 8 * chunks
+        for name, _ in channels:
+            result[name] = np.empty((height, width), dtype=np.float32)
+        for offset in offsets:
+            if multipart:
+                assert struct.unpack_from("<i", data, offset)[0] == part
+                offset += 4
+            y, _size = struct.unpack_from("<2i", data, offset)
+            at = offset + 8
+            for name, _ in channels:
+                result[name][y - window[1]] = np.frombuffer(data, dtype="<f4", count=width, offset=at)
+                at += 4 * width
+    return result
+
+
+def render_multilayer_exr(name):
+    """F12 with the operator into an uncompressed 32-bit multilayer EXR, read back: {"ViewLayer.Pass.Channel": float32
+    array, rows top to bottom}."""
+    from raysplats.blender.compat import use_multilayer_exr
+    scene = bpy.context.scene
+    settings = scene.render.image_settings
+    use_multilayer_exr(settings)
+    settings.color_depth = "32"
+    settings.exr_codec = "NONE"
+    scene.render.filepath = tmp_file(name + ".exr")
+    bpy.ops.render.render(write_still=True)
+    return read_uncompressed_exr(scene.render.filepath)

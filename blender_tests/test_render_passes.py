@@ -1,78 +1,12 @@
 # Render passes come from the core's film channel table: each channel can be switched on in View Layer > Passes,
 # F12 fills it, and Blender writes it to a multilayer EXR with the values the geometry predicts (depth of a plane
 # at a known distance, its normal, its coverage).
-import struct
 import unittest
 
 import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.blender.compat import use_multilayer_exr
-
-
-def _read_exr_header(data, pos):
-    """One OpenEXR header from byte `pos`: (channels [(name, pixel type)], data window, compression, chunk count,
-    the position after its terminating null byte)."""
-    channels, window, compression, chunks = [], None, None, None
-    while data[pos] != 0:
-        end = data.index(b"\0", pos)
-        name = data[pos:end].decode()
-        type_end = data.index(b"\0", end + 1)
-        (size,) = struct.unpack_from("<i", data, type_end + 1)
-        value = data[type_end + 5:type_end + 5 + size]
-        if name == "channels":
-            at = 0
-            while value[at] != 0:
-                name_end = value.index(b"\0", at)
-                pixel_type = struct.unpack_from("<i", value, name_end + 1)[0]
-                channels.append((value[at:name_end].decode(), pixel_type))
-                at = name_end + 1 + 16
-        elif name == "dataWindow":
-            window = struct.unpack("<4i", value)
-        elif name == "compression":
-            compression = value[0]
-        elif name == "chunkCount":
-            (chunks,) = struct.unpack("<i", value)
-        pos = type_end + 5 + size
-    return channels, window, compression, chunks, pos + 1
-
-
-def read_uncompressed_exr(path):
-    """{channel name: float32 array (rows top to bottom)} of an uncompressed, 32-bit float scanline OpenEXR file,
-    single-part (Blender 3.4-4.x's multilayer files) or multi-part (Blender 5.0's: one part per pass). Written from
-    the OpenEXR file layout (headers, chlist, offset tables, scanline chunks; a multi-part file ends its header list
-    with an empty header and starts each chunk with its part number), not with Blender, so that it checks what
-    Blender wrote."""
-    data = open(path, "rb").read()
-    assert data[:4] == b"\x76\x2f\x31\x01", "not an OpenEXR file"
-    multipart = bool(struct.unpack_from("<I", data, 4)[0] & 0x1000)
-    pos, parts = 8, []
-    while True:
-        channels, window, compression, chunks, pos = _read_exr_header(data, pos)
-        assert compression == 0, "compressed EXR"
-        assert all(t == 2 for _, t in channels), "not 32-bit float"
-        parts.append((channels, window, chunks if multipart else window[3] - window[1] + 1))
-        if not multipart or data[pos] == 0:
-            break
-    pos += 1 if multipart else 0
-    result = {}
-    for part, (channels, window, chunks) in enumerate(parts):
-        width, height = window[2] - window[0] + 1, window[3] - window[1] + 1
-        offsets = struct.unpack_from(f"<{chunks}Q", data, pos)
-        pos += 8 * chunks
-        for name, _ in channels:
-            result[name] = np.empty((height, width), dtype=np.float32)
-        for offset in offsets:
-            if multipart:
-                assert struct.unpack_from("<i", data, offset)[0] == part
-                offset += 4
-            y, _size = struct.unpack_from("<2i", data, offset)
-            at = offset + 8
-            for name, _ in channels:
-                result[name][y - window[1]] = np.frombuffer(data, dtype="<f4", count=width, offset=at)
-                at += 4 * width
-    return result
 
 
 class RenderPasses(unittest.TestCase):
@@ -95,14 +29,7 @@ class RenderPasses(unittest.TestCase):
         scene.camera = camera
 
     def render_exr(self, name):
-        scene = bpy.context.scene
-        settings = scene.render.image_settings
-        use_multilayer_exr(settings)
-        settings.color_depth = "32"
-        settings.exr_codec = "NONE"
-        scene.render.filepath = st.tmp_file(name + ".exr")
-        bpy.ops.render.render(write_still=True)
-        return read_uncompressed_exr(scene.render.filepath)
+        return st.render_multilayer_exr(name)
 
     def test_every_film_channel_has_a_pass_check_box(self):
         view_layer = bpy.context.view_layer
@@ -113,6 +40,10 @@ class RenderPasses(unittest.TestCase):
         self.assertIn("use_pass_alpha", view_layer.raysplats_passes.bl_rna.properties.keys())
 
     def test_only_enabled_passes_are_written(self):
+        # Blender's own check boxes of the data passes are off in a new scene.
+        view_layer = bpy.context.view_layer
+        for name in ("use_pass_mist", "use_pass_position", "use_pass_object_index", "use_pass_material_index"):
+            self.assertFalse(getattr(view_layer, name), name)
         exr = self.render_exr("passes_default")
         layers = {name.split(".")[1] for name in exr}
         self.assertEqual(layers, {"Combined"})

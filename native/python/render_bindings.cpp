@@ -61,7 +61,7 @@ struct RenderScene {
                                float emission_strength, float alpha, const std::string& diffuse_model,
                                const std::optional<FloatArray>& base_color_texture, bool texture_srgb,
                                const std::string& principled_version, const py::object& specular_tint,
-                               bool multiscatter) {
+                               bool multiscatter, std::uint32_t pass_index) {
         raysplats::Material m;
         m.base_color = rgb_from(base_color, "base_color");
         m.metallic = metallic, m.roughness = roughness, m.specular = specular;
@@ -72,6 +72,7 @@ struct RenderScene {
         m.principled_version = principled_version_names().value_of(principled_version);
         m.specular_tint = rgb_from(specular_tint, "specular_tint");
         m.multiscatter = multiscatter;
+        m.pass_index = pass_index;
         if (base_color_texture) {
             // H x W x C (or H x W for one channel), row 0 = bottom as Blender's Image.pixels.
             const FloatArray& t = *base_color_texture;
@@ -94,7 +95,7 @@ struct RenderScene {
     static raysplats::MeshDesc mesh_desc(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
                                          std::uint32_t material, const std::optional<UintArray>& face_materials,
                                          const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
-                                         std::vector<py::object>& arrays) {
+                                         std::uint32_t pass_index, std::vector<py::object>& arrays) {
         const py::ssize_t vertex_count = require_shape(vertices, "vertices", {kAnySize, 3});
         const py::ssize_t triangle_count = require_shape(triangles, "triangles", {kAnySize, 3});
         raysplats::MeshDesc d;
@@ -103,6 +104,7 @@ struct RenderScene {
         d.indices = triangles.data();
         d.triangle_count = std::size_t(triangle_count);
         d.material = material;
+        d.pass_index = pass_index;
         d.object_to_world = matrix_from(matrix, "matrix");
         arrays = {vertices, triangles};
         if (face_materials) {
@@ -125,9 +127,11 @@ struct RenderScene {
 
     std::uint32_t add_mesh(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
                            std::uint32_t material, const std::optional<UintArray>& face_materials,
-                           const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
+                           const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
+                           std::uint32_t pass_index) {
         std::vector<py::object> arrays;
-        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
+        const raysplats::MeshDesc d =
+            mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, pass_index, arrays);
         const std::uint32_t index = shared.change()->add_mesh(d);
         mesh_arrays.push_back(std::move(arrays));
         return index;
@@ -135,9 +139,11 @@ struct RenderScene {
 
     void update_mesh(std::uint32_t index, const FloatArray& vertices, const UintArray& triangles,
                      const py::object& matrix, std::uint32_t material, const std::optional<UintArray>& face_materials,
-                     const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs) {
+                     const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
+                     std::uint32_t pass_index) {
         std::vector<py::object> arrays;
-        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, arrays);
+        const raysplats::MeshDesc d =
+            mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, pass_index, arrays);
         shared.change()->update_mesh(index, d);
         mesh_arrays[index] = std::move(arrays);  // the old arrays are released only now
     }
@@ -183,6 +189,11 @@ struct RenderScene {
         shared.change()->set_gaussian_shading(index, value);
     }
 
+    void set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_pass_index,
+                                   std::uint32_t material_pass_index) {
+        shared.change()->set_gaussian_pass_indices(index, object_pass_index, material_pass_index);
+    }
+
     std::uint32_t add_light(const std::string& type, const py::object& color, float power, const py::object& matrix,
                             float spot_size, float spot_blend, float size_x, float size_y, float sun_angle) {
         raysplats::Light l;
@@ -194,10 +205,11 @@ struct RenderScene {
         return shared.change()->add_light(l);
     }
 
-    void set_world(const py::object& color, float strength) {
+    void set_world(const py::object& color, float strength, float mist_start, float mist_depth, float mist_falloff) {
         raysplats::World w;
         w.color = rgb_from(color, "color");
         w.strength = strength;
+        w.mist_start = mist_start, w.mist_depth = mist_depth, w.mist_falloff = mist_falloff;
         shared.change()->set_world(w);
     }
 
@@ -292,19 +304,22 @@ void register_render_bindings(py::module_& m) {
              "ior"_a = 1.45f, "emission_color"_a = std::vector<float>{0, 0, 0}, "emission_strength"_a = 1.0f,
              "alpha"_a = 1.0f, "diffuse_model"_a = "LAMBERT", "base_color_texture"_a = py::none(),
              "texture_srgb"_a = false, "principled_version"_a = "V1",
-             "specular_tint"_a = std::vector<float>{1.0f, 1.0f, 1.0f}, "multiscatter"_a = false)
+             "specular_tint"_a = std::vector<float>{1.0f, 1.0f, 1.0f}, "multiscatter"_a = false, "pass_index"_a = 0u)
         .def("add_mesh", &RenderScene::add_mesh, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
-             "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none())
+             "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none(),
+             "pass_index"_a = 0u)
         .def("add_gaussians", &RenderScene::add_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
              "sh"_a, "matrix"_a = py::none())
         .def("add_light", &RenderScene::add_light, "type"_a, "color"_a, "power"_a, "matrix"_a,
              "spot_size"_a = 0.785398163f, "spot_blend"_a = 0.15f, "size_x"_a = 1.0f, "size_y"_a = 1.0f,
              "sun_angle"_a = 0.0f)
-        .def("set_world", &RenderScene::set_world, "color"_a, "strength"_a = 1.0f)
+        .def("set_world", &RenderScene::set_world, "color"_a, "strength"_a = 1.0f, "mist_start"_a = 0.0f,
+             "mist_depth"_a = 100.0f, "mist_falloff"_a = 1.0f,
+             "The world's colour and strength, and its mist settings (the Mist pass; falloff as an exponent)")
         .def("build", &RenderScene::build, "gaussian_mode"_a = "FLAT", "Builds the BVH; returns seconds")
         .def("update_mesh", &RenderScene::update_mesh, "index"_a, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
              "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none(),
-             "Replaces mesh `index` (as add_mesh); the next build rebuilds only its BVH")
+             "pass_index"_a = 0u, "Replaces mesh `index` (as add_mesh); the next build rebuilds only its BVH")
         .def("update_gaussians", &RenderScene::update_gaussians, "index"_a, "positions"_a, "rotations"_a, "scales"_a,
              "opacities"_a, "sh"_a, "matrix"_a = py::none(),
              "Replaces Gaussian cloud `index`; the next build rebuilds only the chunks that changed")
@@ -317,6 +332,9 @@ void register_render_bindings(py::module_& m) {
         .def("set_gaussian_shading", &RenderScene::set_gaussian_shading, "index"_a, "shading"_a = py::none(),
              "Gaussian cloud `index`'s own shading (BAKED, LIT, BAKED_SHADOWED), or None for the render setting "
              "gaussian_shading")
+        .def("set_gaussian_pass_indices", &RenderScene::set_gaussian_pass_indices, "index"_a, "object_pass_index"_a,
+             "material_pass_index"_a = 0u,
+             "The Object and Material Index passes' values where Gaussian cloud `index` is the surface")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")

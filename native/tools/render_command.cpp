@@ -21,7 +21,7 @@
 //    "lights": [{"type": "point|sun|spot|area|disk", "color": [1,1,1], "power": 1000,
 //                "position": [...], "target": [...]  (or "matrix"), "size": [x,y], "spot_size": 0.785,
 //                "spot_blend": 0.15, "angle": 0}],
-//    "world": {"color": [r,g,b], "strength": 1},
+//    "world": {"color": [r,g,b], "strength": 1, "mist_start": 0, "mist_depth": 100, "mist_falloff": 1},
 //    "render": {"width": 1280, "height": 720, "samples": 16, "max_bounces": 4, "seed": 0,
 //               "gaussian_mode": "FLAT|VOLUMETRIC", "compositing": "SORTED|STOCHASTIC",
 //               "blend_space": "DISPLAY|LINEAR",
@@ -443,6 +443,9 @@ int render_command(int argc, char** argv) {
             World w;
             w.color = vec3(scene_json["world"].at("color"), "world color");
             w.strength = scene_json["world"].value("strength", 1.0f);
+            w.mist_start = scene_json["world"].value("mist_start", w.mist_start);
+            w.mist_depth = scene_json["world"].value("mist_depth", w.mist_depth);
+            w.mist_falloff = scene_json["world"].value("mist_falloff", w.mist_falloff);
             scene.set_world(w);
         }
         const Camera camera = parse_camera(scene_json.value("camera", json::object()));

@@ -224,6 +224,17 @@ def set_render_pass(render_pass, values):
         render_pass.rect = np.ascontiguousarray(values, dtype=np.float32).reshape(-1, render_pass.channels)
 
 
+# Blender 5.0 renamed render passes (RE_PASSNAME_* in the render pipeline's header): "IndexOB" and "IndexMA" became
+# "Object Index" and "Material Index", as Cycles registers them there (its other renames are of passes this engine
+# does not have). The core's film table names them as before 5.0.
+RENAMED_RENDER_PASSES = {"IndexOB": "Object Index", "IndexMA": "Material Index"} if _since(5, 0) else {}
+
+
+def render_pass_name(name):
+    """This Blender's name of a render pass the core's film table calls `name`."""
+    return RENAMED_RENDER_PASSES.get(name, name)
+
+
 # --- Operators --------------------------------------------------------------------------------------------------------
 
 # bpy.ops.transform.rotate(value=a, orient_axis=X) turns by TRANSFORM_ROTATE_SIGN * a, right-handed about the axis.

@@ -136,7 +136,7 @@ def render_final(engine, depsgraph):
             engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | "
                                     f"Sample {done}/{settings.samples} ({int(100 * job.progress)}%)")
             if done > shown_samples and time.perf_counter() - shown_at >= UPDATE_SECONDS:
-                film = job.snapshot()
+                film = job.snapshot(passes.written_keys(result.layers[0]))
                 passes.write_passes(result.layers[0], film, rows, cols)
                 engine.update_result(result)
                 shown_samples, shown_at = film["samples"], time.perf_counter()

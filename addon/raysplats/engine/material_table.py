@@ -23,7 +23,8 @@ class MaterialTable:
         key = material.name_full
         if key not in self.indices:
             kwargs, uv_map = read_material(material, self.warn, self.images)
-            self.indices[key] = self.render_scene.add_material(**kwargs)
+            # (The Material Index pass's value, which no exporter needs, so not the reader's.)
+            self.indices[key] = self.render_scene.add_material(pass_index=material.pass_index, **kwargs)
             self.uv_maps[key] = uv_map
         return self.indices[key]
 

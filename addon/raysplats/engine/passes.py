@@ -8,7 +8,9 @@ from .. import native
 from ..blender import compat
 
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
-_BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal"}
+_BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
+                    "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
+                    "IndexMA": "use_pass_material_index"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -39,17 +41,27 @@ def enabled(view_layer, channel):
     return toggle is None or bool(getattr(*toggle, False))
 
 
+def blender_name(channel):
+    """The render pass's name in this Blender (5.0 renamed some)."""
+    return compat.render_pass_name(channel["pass_name"])
+
+
 def register_passes(engine, scene, view_layer):
     for channel in channels():
         if enabled(view_layer, channel):
-            engine.register_pass(scene, view_layer, channel["pass_name"], len(channel["components"]),
+            engine.register_pass(scene, view_layer, blender_name(channel), len(channel["components"]),
                                  channel["components"], channel["kind"])
+
+
+def written_keys(render_layer):
+    """The keys of the film channels the render layer has passes for: what write_passes writes."""
+    return [channel["key"] for channel in channels() if render_layer.passes.get(blender_name(channel)) is not None]
 
 
 def write_passes(render_layer, film, rows, cols):
     """Writes every pass the render layer has from the film (rows top to bottom), one bulk write each."""
     for channel in channels():
-        render_pass = render_layer.passes.get(channel["pass_name"])
+        render_pass = render_layer.passes.get(blender_name(channel))
         if render_pass is None:
             continue
         # Film rows run top to bottom; Blender's from the bottom up.
@@ -65,9 +77,9 @@ def draw_pass_toggles(layout, view_layer):
         if toggle is None:
             row = column.row()
             row.enabled = False
-            row.label(text=channel["pass_name"], icon="CHECKBOX_HLT")
+            row.label(text=blender_name(channel), icon="CHECKBOX_HLT")
         else:
-            column.prop(*toggle, text=channel["pass_name"])
+            column.prop(*toggle, text=blender_name(channel))
 
 
 def _pass_properties_class():

@@ -30,6 +30,29 @@ def _light_kwargs(light, matrix):
     return dict(common, type="POINT")
 
 
+# Blender's mist falloffs as the exponents Cycles gives them (intern/cycles/blender/sync.cpp, sync_film).
+_MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
+
+
+def _world_mist(scene):
+    """RenderScene.set_world's mist arguments from the World's Mist Pass settings (none without a World: the core's
+    defaults, Cycles' own, which Cycles renders such a scene with)."""
+    world = scene.world
+    if world is None:
+        return {}
+    mist = world.mist_settings
+    return {"mist_start": float(mist.start), "mist_depth": float(mist.depth),
+            "mist_falloff": _MIST_FALLOFF[mist.falloff]}
+
+
+def pass_indices(obj):
+    """(object pass index, material pass index) of a Gaussian object for the Object and Material Index passes: its
+    Object.pass_index, and its first material's pass_index (0 without one), since Gaussians have no material of
+    their own (docs/reference.md, Passes)."""
+    material = next((slot.material for slot in obj.material_slots if slot.material is not None), None)
+    return int(obj.pass_index), int(material.pass_index) if material is not None else 0
+
+
 def _world(scene):
     world = scene.world
     if world is None:
@@ -169,6 +192,7 @@ class SceneSync:
         self.faces_recovered = 0  # by the last update() (diagnostics: an edit of a few splats recovers only them)
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
         self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
+        self.pass_indices = {}  # original object (drawn once) -> pass_indices() as given to the native scene
         self._build(depsgraph)
 
     @staticmethod
@@ -311,8 +335,10 @@ class SceneSync:
                                                        np.array(matrix, dtype=np.float32))
                 stats.splats += len(cloud["opacities"])
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
+                render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
                 if uid is None:
                     continue
+                self.pass_indices[uid] = pass_indices(obj)
                 if kind == splat_object.POLYGONS:
                     self.shading[uid] = _object_shading(obj)
                     self.clouds[uid] = (index, len(cloud["opacities"]))
@@ -327,16 +353,17 @@ class SceneSync:
                 vertices, triangles, face_materials, uvs = arrays
                 with self.clock.stage("scene"):
                     index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                                  face_materials=face_materials, uvs=uvs)
+                                                  face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index)
                 stats.triangles += len(triangles)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
+                    self.pass_indices[uid] = pass_indices(obj)
             elif obj.type == "LIGHT":
                 render_scene.add_light(**_light_kwargs(obj.data, matrix))
                 stats.lights += 1
         self.materials = materials
         color, strength = _world(depsgraph.scene)
-        render_scene.set_world(color, strength)
+        render_scene.set_world(color, strength, **_world_mist(depsgraph.scene))
 
     def _mesh_arrays(self, obj, materials, mesh_cache):
         """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""
@@ -395,6 +422,8 @@ class SceneSync:
         uid = data.original.as_pointer()
         if uid in self.clouds and _object_shading(data) != self.shading.get(uid):
             return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
+        if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
+            return True  # its pass index, or its first material's (neither geometry nor transform either)
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
         # Objects the scene holds nothing of: the camera (not part of the scene), and those whose changes reach it
@@ -421,6 +450,8 @@ class SceneSync:
                 return "rebuild"
             uid = data.original.as_pointer()
             matrix = np.array(data.matrix_world, dtype=np.float32)
+            if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
+                return "rebuild"  # (rare: an animated pass index)
             if uid in self.clouds:
                 shading = _object_shading(data)
                 if shading != self.shading.get(uid):
@@ -456,7 +487,7 @@ class SceneSync:
                     self.meshes[uid] = (index, arrays)
                 vertices, triangles, face_materials, uvs = arrays
                 self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
-                                              uvs=uvs)
+                                              uvs=uvs, pass_index=data.pass_index)
                 result = "updated"
             else:
                 return "rebuild"  # a new object, an instancer, a light

@@ -12,6 +12,8 @@ _COMPATIBLE_PANELS = (
     "DATA_PT_camera", "DATA_PT_lens", "DATA_PT_camera_display", "DATA_PT_light",
     "DATA_PT_EEVEE_light", "DATA_PT_area", "DATA_PT_spot", "EEVEE_MATERIAL_PT_surface", "MATERIAL_PT_preview",
     "EEVEE_WORLD_PT_surface", "WORLD_PT_context_world", "VIEWLAYER_PT_layer_passes", "RENDER_PT_format_presets",
+    # World > Mist Pass (start, depth, falloff), shown as Cycles shows its own once a view layer has the Mist pass.
+    "EEVEE_WORLD_PT_mist",
 )
 
 

@@ -197,7 +197,7 @@ def _take_image(state, denoise=False):
         if denoise and film["samples"] > 0 and denoiser.available():
             film["rgba"][..., :3] = denoiser.denoise(film["rgba"])
     elif job.snapshot_samples > state.shown_samples:
-        film = job.snapshot(["rgba"])  # the one channel drawn: a third of a whole film's copy
+        film = job.snapshot(["rgba"])  # the one channel drawn, not the whole film
     else:
         return None
     state.shown_samples = film["samples"]

@@ -6,6 +6,7 @@
 
 #include "gaussian_callbacks.h"
 #include "gaussian_primitives.h"
+#include "mist.h"
 #include "simd.h"
 
 namespace raysplats {
@@ -55,8 +56,8 @@ void packet_samples(std::uint32_t lanes, const float* xs, const float* ys, const
 
 }  // namespace
 
-inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& ray, Sampler& rng, Segment& seg,
-                                   Counters& c) const {
+inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& ray, float view_rate, Sampler& rng,
+                                   Segment& seg, Counters& c) const {
     const ProjectedSplat& ps = prepass_.splats()[index];
     const float alpha = std::min(kMaxAlpha, ps.opacity * std::exp(power));
     if (alpha < kMinAlpha) return false;
@@ -77,6 +78,9 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
     ++c.gaussian_hits;
     const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
     const bool stop = seg.transmittance < st_.transmittance_threshold;
+    // As GaussianSegmentTracer::add_mist: a stopping splat takes the transmittance left too.
+    seg.mist_clearance += (stop ? t_before : t_before * alpha) *
+                          mist_clearance(s_.world, ray.camera_distance + ps.depth / view_rate);
     if (opaque_here || stop) {
         // The point of the ray nearest the centre stands for the splat's place along the ray.
         const SplatSource& source = prepass_.sources()[index];
@@ -84,6 +88,7 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
         const float along = glm::dot(set.world_center(source.prim) - ray.o, ray.d);
         if (opaque_here) {
             seg.depth = along;
+            seg.depth_set = &set;
             const glm::vec3 n = set.flat ? set.world_normal(source.prim) : -ray.d;
             seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
         }
@@ -96,8 +101,8 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
 }
 
 inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs,
-                                       const float* ys, const float* mesh_depth, Sampler* rngs, Segment* segs,
-                                       Counters& c) const {
+                                       const float* ys, const float* mesh_depth, const float* view_rates,
+                                       Sampler* rngs, Segment* segs, Counters& c) const {
     const std::vector<ProjectedSplat>& splats = prepass_.splats();
     const SplatTileLists &coarse_lists = prepass_.coarse(), &fine_lists = prepass_.fine();
     // The box of the packet's sample positions: a splat whose square misses it is skipped with four comparisons
@@ -157,7 +162,7 @@ inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lane
         lanes &= ~behind;  // the lists are front to back: these lanes are done
         for (std::uint32_t live = covered & lanes; live; live &= live - 1) {
             const int l = __builtin_ctz(live);
-            if (blend(index, power[l], rays[l], rngs[l], segs[l], c)) lanes &= ~(1u << l);
+            if (blend(index, power[l], rays[l], view_rates[l], rngs[l], segs[l], c)) lanes &= ~(1u << l);
         }
     }
 }
@@ -183,7 +188,7 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
         rtcIntersect16(valid, s_.scene, &ctx, &rh);
     }
-    float mesh_depth[16];
+    float mesh_depth[16], view_rates[16];
     std::size_t tiles[16];
     std::uint32_t pending = 0;  // lanes whose tile is not composited yet
     for (int l = 0; l < 16; ++l) {
@@ -191,6 +196,8 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
         const bool mesh = any_mesh && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
         if (any_mesh) ++c.traced;
         mesh_depth[l] = mesh ? prepass_.view_depth(rays[l].o + rh.ray.tfar[l] * rays[l].d) : kInf;
+        // (Perspective rays start at the camera, whose view depth is 0.)
+        view_rates[l] = prepass_.view_depth(rays[l].o + rays[l].d);
         // The tile of the lane's pixel, not of its sample: the lists are binned for every sample of their pixels.
         tiles[l] = fine_lists.tile_of(float(packet_x + (l & 3)) + 0.5f, float(packet_y + (l >> 2)) + 0.5f,
                                       prepass_.grid_x0(), prepass_.grid_y0());
@@ -202,7 +209,7 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
         std::uint32_t group = 0;
         for (std::uint32_t p = pending; p; p &= p - 1)
             if (tiles[__builtin_ctz(p)] == tile) group |= 1u << __builtin_ctz(p);
-        composite(tile, group, rays, xs, ys, mesh_depth, rngs, segs, c);
+        composite(tile, group, rays, xs, ys, mesh_depth, view_rates, rngs, segs, c);
         pending &= ~group;
     }
     for (int l = 0; l < 16; ++l) {

@@ -75,14 +75,18 @@ public:
 private:
     // Composites onto the segments of the lanes in `lanes` (a mask), whose samples all lie in fine tile `fine_tile`,
     // the splats of that fine tile's list and of its coarse tile's list, merged in depth order, in front of each
-    // lane's `mesh_depth` (view depth): the lists are read once for all of them.
+    // lane's `mesh_depth` (view depth): the lists are read once for all of them. `view_rates`: each lane's view depth
+    // per unit of t along its ray.
     void composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs, const float* ys,
-                   const float* mesh_depth, Sampler* rngs, Segment* segs, Counters& c) const;
+                   const float* mesh_depth, const float* view_rates, Sampler* rngs, Segment* segs, Counters& c) const;
 
     // Composites splat `index` onto a lane's segment, at `power` (its exponent at the lane's sample): C += T alpha c,
-    // T *= 1 - alpha; the splat that makes the segment opaque gives its depth and normal. Returns whether the segment
-    // stopped (T below the transmittance threshold).
-    bool blend(std::uint32_t index, float power, const Ray& ray, Sampler& rng, Segment& seg, Counters& c) const;
+    // T *= 1 - alpha; the splat that makes the segment opaque gives its depth, normal and cloud. Its Mist pass term
+    // (Segment::mist_clearance) is taken where the ray reaches the splat's view depth (the ray's view depth per unit
+    // t: `view_rate`), which needs no fetch of its centre. Returns whether the segment stopped (T below the
+    // transmittance threshold).
+    bool blend(std::uint32_t index, float power, const Ray& ray, float view_rate, Sampler& rng, Segment& seg,
+               Counters& c) const;
 
     const Scene::Impl& s_;
     const RenderSettings& st_;

@@ -69,6 +69,12 @@ void normal_of(const SampleRecord& s, float* out) { out[0] = s.normal[0], out[1]
 void coverage_of(const SampleRecord& s, float* out) { out[0] = s.alpha; }
 void gaussian_count_of(const SampleRecord& s, float* out) { out[0] = s.gaussian_count; }
 void one_sample(const SampleRecord&, float* out) { out[0] = 1.0f; }
+void mist_of(const SampleRecord& s, float* out) { out[0] = s.mist; }
+void position_of(const SampleRecord& s, float* out) {
+    out[0] = s.position[0], out[1] = s.position[1], out[2] = s.position[2];
+}
+void object_index_of(const SampleRecord& s, float* out) { out[0] = s.object_index; }
+void material_index_of(const SampleRecord& s, float* out) { out[0] = s.material_index; }
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
 
@@ -87,6 +93,19 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     // Cycles' name for the same debug pass; Cycles divides by the render's samples, this is the count itself.
     {FilmChannel::SampleCount, "sample_count", "Debug Sample Count", "X", "VALUE", SampleCombination::Sum, 0.0f,
      "Debug: samples the pixel received (fewer where adaptive sampling found it converged)", one_sample},
+    // Blender's names and layouts (Cycles' addon engine.py, list_render_passes; Blender 5.0 renamed IndexOB and IndexMA,
+    // which the add-on maps). Cycles averages mist over the samples and writes the others from the first sample only
+    // (kernel/film/data_passes.h).
+    {FilmChannel::Mist, "mist", "Mist", "Z", "VALUE", SampleCombination::Mean, 0.0f,
+     "Mist: 1 - the coverage-weighted sum of 1 - mist(distance) along the camera ray (the World's mist settings; "
+     "1: only the world)", mist_of},
+    {FilmChannel::Position, "position", "Position", "XYZ", "VECTOR", SampleCombination::FirstSample, 0.0f,
+     "World-space position where the opacity reaches 0.5, the depth's point (first sample; 0: none)", position_of},
+    {FilmChannel::ObjectIndex, "object_index", "IndexOB", "X", "VALUE", SampleCombination::FirstSample, 0.0f,
+     "Pass index of the object at the depth's point (first sample; 0: none)", object_index_of},
+    {FilmChannel::MaterialIndex, "material_index", "IndexMA", "X", "VALUE", SampleCombination::FirstSample, 0.0f,
+     "Pass index of the material at the depth's point (Gaussians: their object's first material; first sample; "
+     "0: none)", material_index_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample

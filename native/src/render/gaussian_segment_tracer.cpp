@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/color_math.h"
+#include "mist.h"
 
 namespace raysplats {
 
@@ -77,6 +78,11 @@ inline glm::vec3 GaussianSegmentTracer::gaussian_color(const GaussianSet& set, s
     return color;
 }
 
+// A Gaussian at `t` along a camera ray, of weight `weight` in the pixel, joins the Mist pass's sum.
+inline void GaussianSegmentTracer::add_mist(Segment& seg, const Ray& ray, float t, float weight) const {
+    if (ray.camera_distance >= 0.0f) seg.mist_clearance += weight * mist_clearance(s_.world, ray.camera_distance + t);
+}
+
 // Composites one Gaussian onto the segment (front to back).
 inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim,
                                              float t, float alpha, Sampler& rng, Counters& c) const {
@@ -89,8 +95,10 @@ inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::
         add_shaded(seg, set, prim, shading, ray, t, t_before * alpha, rng);
     }
     seg.transmittance = t_before * (1.0f - alpha);
+    add_mist(seg, ray, t, t_before * alpha);
     if (t_before > 0.5f && seg.transmittance <= 0.5f) {
         seg.depth = t;
+        seg.depth_set = &set;
         glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
         seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
     }
@@ -126,6 +134,7 @@ inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, co
         if (seg.transmittance < st_.transmittance_threshold) {
             seg.terminated = true;
             seg.end = h.t;
+            add_mist(seg, ray, h.t, seg.transmittance);
             return true;
         }
     }
@@ -190,6 +199,8 @@ inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L
         seg.transmittance = 0.0f;
         seg.terminated = true;
         seg.depth = tfar;
+        seg.depth_set = &set;
+        add_mist(seg, ray, tfar, 1.0f);
         const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
         seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
         ++seg.gaussians;

@@ -35,6 +35,12 @@ struct Segment {
     float depth = kInf;        // first point where opacity reaches 0.5
     glm::vec3 normal{0.0f};    // there; left 0 when that point is the mesh hit (the path integrator shades it)
     bool depth_at_mesh = false;
+    const GaussianSet* depth_set = nullptr;  // the cloud of the Gaussian at `depth` (null: a mesh's depth, or none)
+    // Camera rays (Ray::camera_distance >= 0): the Mist pass's sum over the Gaussians (mist.h), sum T_i a_i (1 -
+    // mist(d_i)), where a terminated segment gives the transmittance it leaves to its terminating Gaussian, which
+    // stands for what lies behind as it does for coverage. The mesh hit is the path integrator's to add. 0 for
+    // other rays.
+    float mist_clearance = 0.0f;
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
     // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).
@@ -67,6 +73,7 @@ private:
                              Counters& c) const;
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const;
+    void add_mist(Segment& seg, const Ray& ray, float t, float weight) const;
     void init_lane(LaneState& L) const;
     static void count_traversal(LaneState& L, Counters& c);
     bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float end, float tfar, unsigned geom,

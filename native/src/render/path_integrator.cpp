@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "bsdf.h"
+#include "mist.h"
 
 namespace raysplats {
 
@@ -74,10 +75,12 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     seg.shading = s1.shading;
     seg.shading.append_behind(s2.shading, s1.transmittance, rng);
     seg.transmittance = s1.transmittance * s2.transmittance;
+    seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
     if (s1.depth < kInf) {
         seg.depth = s1.depth;
         seg.normal = s1.normal;
         seg.depth_at_mesh = s1.depth_at_mesh;
+        seg.depth_set = s1.depth_set;
     }
     return seg;
 }
@@ -114,8 +117,14 @@ struct PathIntegrator::PathState {
     float alpha = 0.0f;
     float depth = kInf;
     glm::vec3 normal{0.0f};
+    glm::vec3 position{0.0f};  // the data passes at the depth (SampleRecord)
+    float object_index = 0.0f, material_index = 0.0f;
+    // The Mist pass's sum (SampleRecord::mist) and the camera ray's transmittance in front of the current segment
+    // (surfaces it passed through stochastically).
+    float mist_clearance = 0.0f, camera_transmittance = 1.0f;
     std::uint32_t camera_gaussians = 0;  // composited or accepted along the camera segment
-    bool normal_at_mesh = false;  // depth is the camera segment's mesh hit, whose normal the surface gives
+    // depth is the camera segment's mesh hit, whose normal, object and material the surface gives (mesh_data_passes)
+    bool normal_at_mesh = false;
     int bounce = 0, passes = 0;
     bool after_diffuse = false;  // Cycles PATH_RAY_DIFFUSE: the last bounce was diffuse
     bool last = false;           // the ray leaving the last vertex: emission only
@@ -181,10 +190,16 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
     p.first_trace = false;
     if (p.camera_segment) {
         p.camera_gaussians += seg.gaussians;
+        p.mist_clearance += p.camera_transmittance * seg.mist_clearance;
         if (p.depth == kInf && seg.depth < kInf) {
             p.depth = seg.depth;
             p.normal = seg.normal;
             p.normal_at_mesh = seg.depth_at_mesh;
+            p.position = p.ray.o + seg.depth * p.ray.d;
+            if (seg.depth_set) {
+                p.object_index = float(seg.depth_set->object_pass_index);
+                p.material_index = float(seg.depth_set->material_pass_index);
+            }
         }
     }
     return behind_weight;
@@ -235,13 +250,30 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     }
     if (gaussian_bounce && p.camera_segment) {
         p.alpha = 1.0f;  // the mesh behind covers the pixel
+        add_mesh_mist(p, seg);
         if (p.normal_at_mesh) {
             const Surface sf = surface(seg, p.ray);
             p.normal = glm::dot(sf.ng, p.ray.d) < 0.0f ? sf.ng : -sf.ng;
-            p.normal_at_mesh = false;
+            mesh_data_passes(p, seg, sf);
         }
     }
     return false;
+}
+
+// The camera segment's mesh hit `seg` joins the Mist pass's sum with the transmittance in front of it (the path
+// stops on it: its alpha is 1 in the sum, as Cycles' is for an opaque surface).
+void PathIntegrator::add_mesh_mist(PathState& p, const Segment& seg) const {
+    p.mist_clearance += p.camera_transmittance * seg.transmittance *
+                        mist_clearance(s_.world, p.ray.camera_distance + seg.t);
+}
+
+// The data passes of the camera segment's mesh hit `seg` (surface `sf`) at the depth: its point, its object's pass
+// index and its face's material's.
+void PathIntegrator::mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const {
+    p.position = sf.p;
+    p.object_index = float(s_.meshes[s_.top[seg.top_geom].index]->desc.pass_index);
+    p.material_index = s_.materials.empty() ? 0.0f : float(s_.materials[sf.material].pass_index);
+    p.normal_at_mesh = false;
 }
 
 // The path's next ray from a bounce off Gaussians; false when Russian roulette ends the path.
@@ -264,21 +296,28 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
     const glm::vec3 ng = entering ? sf.ng : -sf.ng;  // facing the incoming ray
     if (p.normal_at_mesh) {
         p.normal = ng;
-        p.normal_at_mesh = false;
+        mesh_data_passes(p, seg, sf);
     }
     const float eps =
         1e-4f * std::max(1.0f, std::max(std::abs(sf.p.x), std::max(std::abs(sf.p.y), std::abs(sf.p.z))));
     if (mat.alpha < 1.0f && p.rng.next() >= mat.alpha && ++p.passes < 256) {
         // Stochastic coverage: continue straight through.
-        if (p.camera_segment) p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
-        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf};
+        float camera_distance = -1.0f;
+        if (p.camera_segment) {
+            p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
+            p.camera_transmittance *= seg.transmittance;
+            camera_distance = p.ray.camera_distance + seg.t;
+        }
+        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf, camera_distance};
         return true;
     }
     if (p.camera_segment) {
         p.alpha = 1.0f;
+        add_mesh_mist(p, seg);
         if (p.depth == kInf) {
             p.depth = seg.t;
             p.normal = ng;
+            mesh_data_passes(p, seg, sf);
         }
         p.camera_segment = false;
     }
@@ -374,6 +413,10 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.alpha = p.alpha;
     record.depth = p.depth;
     record.normal = {p.normal.x, p.normal.y, p.normal.z};
+    record.position = {p.position.x, p.position.y, p.position.z};
+    record.object_index = p.object_index;
+    record.material_index = p.material_index;
+    record.mist = 1.0f - p.mist_clearance;
     record.gaussian_count = float(p.camera_gaussians);
     return record;
 }

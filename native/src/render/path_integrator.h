@@ -60,6 +60,8 @@ private:
     bool next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3& hit_p, const glm::vec3& ng,
                      const glm::vec3& wo, float eps) const;
     bool next_vertex(PathState& p) const;
+    void add_mesh_mist(PathState& p, const Segment& seg) const;
+    void mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const;
     SampleRecord sample_record(PathState& p) const;
 
     const Scene::Impl& s_;

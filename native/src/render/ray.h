@@ -14,6 +14,9 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 struct Ray {
     glm::vec3 o, d;
     float tmin, tmax;
+    // A camera ray (or its continuation through a surface it passed): the distance from the camera at t = 0, which
+    // the Mist pass measures (mist.h). Negative for every other ray, which computes no mist.
+    float camera_distance = -1.0f;
 };
 
 // Per tile, summed into Film::stats: traversals, Gaussians composited, and the Gaussian / group tests the callbacks

@@ -252,6 +252,13 @@ void Scene::set_gaussian_shading(std::uint32_t index, std::optional<GaussianShad
     impl_->gaussians[index]->shading = shading;
 }
 
+void Scene::set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_pass_index,
+                                      std::uint32_t material_pass_index) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    impl_->gaussians[index]->object_pass_index = object_pass_index;
+    impl_->gaussians[index]->material_pass_index = material_pass_index;
+}
+
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());
     impl_->lights.push_back(light);
@@ -261,6 +268,10 @@ std::uint32_t Scene::add_light(const Light& light) {
 void Scene::set_world(const World& world) {
     for (float v : {world.color[0], world.color[1], world.color[2], world.strength})
         if (!std::isfinite(v) || v < 0.0f) throw InvalidArgument("world: colour and strength must be finite and >= 0");
+    for (float v : {world.mist_start, world.mist_depth})
+        if (!std::isfinite(v) || v < 0.0f) throw InvalidArgument("world: mist start and depth must be finite and >= 0");
+    if (!std::isfinite(world.mist_falloff) || world.mist_falloff <= 0.0f)
+        throw InvalidArgument("world: mist falloff must be finite and > 0");
     impl_->world = world;
 }
 

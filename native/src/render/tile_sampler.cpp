@@ -88,7 +88,10 @@ std::uint64_t TileSampler::start_packet(TileState& tile, Packet& packet) const {
             continue;
         }
         packet.rays[l] = Ray{glm::vec3(cr.origin[0], cr.origin[1], cr.origin[2]),
-                             glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max};
+                             glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max,
+                             // Every camera model starts its rays at the camera (an orthographic camera's on its
+                             // plane) with unit directions: t is the distance Cycles' camera_distance() gives.
+                             0.0f};
         packet.active[l] = packet.any = true;
     }
     return empty;

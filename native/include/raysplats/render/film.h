@@ -38,13 +38,27 @@ struct SampleRecord {
     // there is none.
     float depth = std::numeric_limits<float>::infinity();
     std::array<float, 3> normal{0.0f, 0.0f, 0.0f};  // world-space normal at that surface, 0 where none
+    // The data passes of Blender's compositor, taken at that surface too (Cycles, kernel/film/data_passes.h, takes
+    // them at the first surface a camera ray meets whose alpha reaches its pass alpha threshold, 0.5): its world
+    // position (the camera ray's point at `depth`), its object's pass index and its material's (a Gaussian's: those
+    // its cloud was given, Scene::set_gaussian_pass_indices); 0 where there is none (the world), as in Cycles.
+    std::array<float, 3> position{0.0f, 0.0f, 0.0f};
+    float object_index = 0.0f;
+    float material_index = 0.0f;
+    // Mist (Cycles' film_write_data_passes): 1 - sum_i w_i (1 - mist(d_i)) over everything the camera ray composited
+    // or stopped on, w_i its weight in the pixel (the transmittance in front of it times its alpha; a mesh it stopped
+    // on, or the Gaussian that terminated compositing, takes all the transmittance left), d_i its distance from the
+    // camera (src/render/mist.h). 1 where the ray sees only the world.
+    float mist = 1.0f;
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
 };
 
-enum class FilmChannel : std::uint8_t { Combined, Depth, Normal, Alpha, GaussianCount, SampleCount };
-constexpr std::size_t kFilmChannelCount = 6;
+enum class FilmChannel : std::uint8_t {
+    Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex
+};
+constexpr std::size_t kFilmChannelCount = 10;
 
 // How a channel combines the samples of a pixel.
 enum class SampleCombination : std::uint8_t {

@@ -41,6 +41,13 @@ struct Light {
 struct World {
     std::array<float, 3> color{0.050876f, 0.050876f, 0.050876f};  // Blender's default world grey
     float strength = 1.0f;
+    // The Mist pass (Blender's World > Mist Pass; Cycles kernel/film/data_passes.h): at distance d from the camera,
+    // mist = clamp((d - mist_start) / mist_depth, 0, 1) ^ mist_falloff (Blender's falloffs: QUADRATIC 2, LINEAR 1,
+    // INVERSE_QUADRATIC 0.5; a depth of 0 gives mist 0 everywhere, as Cycles' mist_inv_depth = 0 does). The defaults
+    // are Cycles' film defaults, which a Blender scene without a World renders with.
+    float mist_start = 0.0f;
+    float mist_depth = 100.0f;
+    float mist_falloff = 1.0f;
 };
 
 }  // namespace raysplats

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 
 namespace raysplats {
 
@@ -54,6 +55,7 @@ struct Material {
     std::array<float, 3> emission_color{0.0f, 0.0f, 0.0f};
     float emission_strength = 1.0f;  // emitted radiance = emission_color * emission_strength
     float alpha = 1.0f;              // coverage; 1 - alpha of the rays pass through unchanged
+    std::uint32_t pass_index = 0;    // Blender's Material.pass_index, which the Material Index pass shows
 
     // Throws InvalidArgument (naming `what`) for NaN, out-of-range values or an inconsistent texture.
     void validate(const char* what) const;

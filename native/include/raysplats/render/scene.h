@@ -48,6 +48,8 @@ struct MeshDesc {
     const std::uint32_t* face_materials = nullptr;  // optional, triangle_count indices into the scene's materials
     std::uint32_t material = 0;                     // material of every face when face_materials is null
     Matrix4 object_to_world;
+    // The object's pass index (Blender's Object.pass_index), which the Object Index pass shows.
+    std::uint32_t pass_index = 0;
 };
 
 // The Embree device a Scene traces with. Embree picks its kernels (packet width, ray order in callbacks, the
@@ -100,6 +102,12 @@ public:
     // Gaussian cloud `index`'s own shading, or none to follow RenderSettings::gaussian_shading (the default). No
     // rebuild is needed.
     void set_gaussian_shading(std::uint32_t index, std::optional<GaussianShading> shading);
+    // What the Object Index and Material Index passes show where Gaussian cloud `index` is the surface (film.h,
+    // SampleRecord): its object's pass index and the material pass index the caller gives its Gaussians (Gaussians
+    // have no material of their own; the add-on gives its object's first material's). Both 0 until set. No rebuild
+    // is needed.
+    void set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_pass_index,
+                                   std::uint32_t material_pass_index);
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).

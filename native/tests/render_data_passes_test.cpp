@@ -1,0 +1,166 @@
+// The compositor's data passes (film.h, SampleRecord): Mist, Position, Object Index and Material Index of a mesh
+// floor and of flat Gaussians over it, against a closed-form computation of the scene, whatever the compositing mode.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "raysplats/errors.h"
+#include "raysplats/render/renderer.h"
+#include "render_test_util.h"
+
+using namespace raysplats;
+using namespace raysplats::testing;
+
+namespace {
+
+constexpr int kWidth = 32, kHeight = 24;
+constexpr float kCameraHeight = 10.0f, kOrthoScale = 8.0f;
+constexpr float kLayerZ = 2.0f, kSigma = 0.7f, kOpacity = 0.9f, kCentreX = 1.5f;
+constexpr float kMistStart = 3.0f, kMistDepth = 8.0f;
+
+// Cycles' mist (kernel/film/data_passes.h).
+double mist_of(double distance, double falloff) {
+    return std::pow(std::clamp((distance - kMistStart) / kMistDepth, 0.0, 1.0), falloff);
+}
+
+// A floor z = 0 over x < 0 (object pass index 3, its material's 5) and one flat Gaussian 8 units below the camera
+// at x = 1.5 (its cloud's pass indices 9 and 11); an orthographic camera looking down from z = 10.
+struct DataPassScene {
+    Scene scene;
+    TestMesh floor = make_quad_z(-8.0f, 0.0f, -8.0f, 8.0f, 0.0f, 0);
+    GaussianCloud cloud;
+    Camera camera;
+
+    explicit DataPassScene(float falloff) {
+        Material m;
+        m.pass_index = 5;
+        scene.add_material(m);
+        MeshDesc d = floor.desc();
+        d.pass_index = 3;
+        scene.add_mesh(d);
+        const float pos[3] = {kCentreX, 0.0f, kLayerZ}, q[4] = {1, 0, 0, 0}, s[3] = {kSigma, kSigma, 1e-4f};
+        const float rgb[3] = {0.8f, 0.3f, 0.2f};
+        add_gaussian(cloud, pos, q, s, kOpacity, rgb);
+        // A second one left of the floor's edge, over the floor.
+        const float left[3] = {-1.5f, 0.0f, kLayerZ};
+        add_gaussian(cloud, left, q, s, kOpacity, rgb);
+        scene.add_gaussians(cloud);
+        scene.set_gaussian_pass_indices(0, 9, 11);
+        World w;
+        w.mist_start = kMistStart, w.mist_depth = kMistDepth, w.mist_falloff = falloff;
+        scene.set_world(w);
+        camera.type = CameraType::Orthographic;
+        camera.ortho_scale = kOrthoScale;
+        camera.camera_to_world = Matrix4::translation(0.0f, 0.0f, kCameraHeight);
+    }
+};
+
+RenderSettings pixel_centre_settings(Compositing compositing, int samples) {
+    RenderSettings s;
+    s.width = kWidth, s.height = kHeight, s.samples = samples;
+    s.jitter = false;  // every sample through the pixel centre
+    s.compositing = compositing;
+    return s;
+}
+
+// The Gaussian layer's alpha at (x, y) of its plane, as the core clamps and cuts it (its disks end at Mahalanobis
+// radius 3, gaussian_primitives.h).
+double layer_alpha(double x, double y) {
+    double transmittance = 1.0;
+    for (double cx : {double(kCentreX), -double(kCentreX)}) {
+        const double r2 = ((x - cx) * (x - cx) + y * y) / (kSigma * kSigma);
+        double a = kOpacity * std::exp(-0.5 * r2);
+        a = a < 1.0 / 255.0 || r2 > 9.0 ? 0.0 : std::min(a, 0.99);
+        transmittance *= 1.0 - a;
+    }
+    return 1.0 - transmittance;
+}
+
+struct Checked {
+    int gaussian = 0, floor = 0, world = 0;
+};
+
+// Checks every pixel of `film` against the closed form; `mist_tolerance`: of the Mist pass (a mean over samples).
+Checked check_passes(const Film& film, double falloff, double mist_tolerance) {
+    Checked n;
+    const double half_w = 0.5 * kOrthoScale, half_h = half_w * kHeight / kWidth;
+    for (int j = 0; j < kHeight; ++j)
+        for (int i = 0; i < kWidth; ++i) {
+            const std::size_t p = std::size_t(j) * kWidth + i;
+            const double x = (2.0 * (i + 0.5) / kWidth - 1.0) * half_w, y = (1.0 - 2.0 * (j + 0.5) / kHeight) * half_h;
+            const double alpha = layer_alpha(x, y);
+            const bool on_floor = x < 0.0;
+            // Orthographic: the distance along the view axis. The world contributes mist 1.
+            const double behind = on_floor ? 1.0 - mist_of(kCameraHeight, falloff) : 0.0;
+            const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, falloff)) - (1.0 - alpha) * behind;
+            EXPECT_NEAR(film[FilmChannel::Mist][p], mist, mist_tolerance) << i << ", " << j;
+            const float* position = &film[FilmChannel::Position][3 * p];
+            const float object = film[FilmChannel::ObjectIndex][p], material = film[FilmChannel::MaterialIndex][p];
+            if (alpha > 0.52) {  // the Gaussian is the surface where the opacity reaches 0.5
+                ++n.gaussian;
+                EXPECT_EQ(object, 9.0f);
+                EXPECT_EQ(material, 11.0f);
+                EXPECT_NEAR(position[0], x, 1e-4);
+                EXPECT_NEAR(position[1], y, 1e-4);
+                EXPECT_NEAR(position[2], kLayerZ, 1e-4);
+            } else if (alpha < 0.48 && on_floor) {
+                ++n.floor;
+                EXPECT_EQ(object, 3.0f);
+                EXPECT_EQ(material, 5.0f);
+                EXPECT_NEAR(position[2], 0.0, 1e-4);
+            } else if (alpha < 0.48) {
+                ++n.world;
+                EXPECT_EQ(object, 0.0f);
+                EXPECT_EQ(material, 0.0f);
+                EXPECT_EQ(position[0], 0.0f);
+                EXPECT_EQ(position[2], 0.0f);
+            }
+        }
+    return n;
+}
+
+}  // namespace
+
+TEST(RenderDataPasses, SortedCompositingFollowsTheClosedForm) {
+    for (float falloff : {2.0f, 1.0f, 0.5f}) {
+        DataPassScene s(falloff);
+        const Film film = render(s.scene, s.camera, pixel_centre_settings(Compositing::Sorted, 2));
+        const Checked n = check_passes(film, falloff, 2e-4);
+        EXPECT_GT(n.gaussian, 20);
+        EXPECT_GT(n.floor, 20);
+        EXPECT_GT(n.world, 20);
+    }
+}
+
+TEST(RenderDataPasses, StochasticCompositingConvergesToIt) {
+    // One Gaussian accepted with probability alpha per sample: the mean mist converges (4096 samples: standard error
+    // below 0.4 * 0.5 / 64).
+    DataPassScene s(1.0f);
+    const Film film = render(s.scene, s.camera, pixel_centre_settings(Compositing::Stochastic, 4096));
+    for (std::size_t p = 0; p < film.pixel_count(); ++p) {
+        EXPECT_GE(film[FilmChannel::Mist][p], 0.0f);
+        EXPECT_LE(film[FilmChannel::Mist][p], 1.0f);
+    }
+    // Indices and positions of one sample are the accepted Gaussian's or what lies behind: only the mean is checked.
+    const double half_w = 0.5 * kOrthoScale, half_h = half_w * kHeight / kWidth;
+    for (int j = 0; j < kHeight; ++j)
+        for (int i = 0; i < kWidth; ++i) {
+            const double x = (2.0 * (i + 0.5) / kWidth - 1.0) * half_w, y = (1.0 - 2.0 * (j + 0.5) / kHeight) * half_h;
+            const double alpha = layer_alpha(x, y);
+            const double behind = x < 0.0 ? 1.0 - mist_of(kCameraHeight, 1.0) : 0.0;
+            const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, 1.0)) - (1.0 - alpha) * behind;
+            EXPECT_NEAR(film[FilmChannel::Mist][std::size_t(j) * kWidth + i], mist, 0.02) << i << ", " << j;
+        }
+}
+
+TEST(RenderDataPasses, WorldMistSettingsAreValidated) {
+    Scene scene;
+    World w;
+    w.mist_depth = -1.0f;
+    EXPECT_THROW(scene.set_world(w), InvalidArgument);
+    w.mist_depth = 1.0f;
+    w.mist_falloff = 0.0f;
+    EXPECT_THROW(scene.set_world(w), InvalidArgument);
+    EXPECT_THROW(scene.set_gaussian_pass_indices(0, 1, 2), InvalidArgument);  // no such cloud
+}
