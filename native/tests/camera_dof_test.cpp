@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -113,6 +114,8 @@ TEST(CameraDepthOfField, DefocusDiscHasTheCircleOfConfusionsDiameter) {
         const Moments m = image_moments(film, 3.0);
         const double expected = coc_radius_pixels(1.0f, s2);
         const double radius_x = 2.0 * std::sqrt(m.var_x), radius_y = 2.0 * std::sqrt(m.var_y);
+        std::printf("S2 = %.1f: defocus disc radius %.2f px (x), %.2f px (y); circle of confusion %.2f px\n", s2,
+                    radius_x, radius_y, expected);
         EXPECT_NEAR(radius_x / expected, 1.0, 0.02) << "S2 = " << s2 << ": " << radius_x << " px vs " << expected;
         EXPECT_NEAR(radius_y / expected, 1.0, 0.02) << "S2 = " << s2 << ": " << radius_y << " px vs " << expected;
         // Not the textbook thin lens's disc, 1 / 0.833 larger here (see the file's comment).
@@ -121,6 +124,7 @@ TEST(CameraDepthOfField, DefocusDiscHasTheCircleOfConfusionsDiameter) {
     const Film sharp = render_emitter(dof_camera(1.0f), kFocus, 3.0, 64);
     const Moments m = image_moments(sharp, 3.0);
     // (A sharp 3-pixel square sampled at pixel centres has 0.08 px^2 more than s^2 / 12 + 1 / 12 per axis.)
+    std::printf("in focus: variance beyond the emitter's and the pixel's %.3f px^2\n", m.var_x + m.var_y);
     EXPECT_LT(std::abs(m.var_x) + std::abs(m.var_y), 0.4);
 }
 
@@ -132,11 +136,14 @@ TEST(CameraDepthOfField, BladesAndRatioShapeTheRenderedDisc) {
     EXPECT_NEAR(std::sqrt(hexagon.var_x * 24.0 / 5.0) / expected, 1.0, 0.02);
     EXPECT_NEAR(std::sqrt(hexagon.var_y * 24.0 / 5.0) / expected, 1.0, 0.02);
     const Moments anamorphic = image_moments(render_emitter(dof_camera(1.0f, 0, 2.0f), s2, 3.0, 1024), 3.0);
+    std::printf("hexagon: circumradius %.2f / %.2f px (x / y) for %.2f px; ratio 2: var_x / var_y %.4f, radius %.2f px\n",
+                std::sqrt(hexagon.var_x * 24.0 / 5.0), std::sqrt(hexagon.var_y * 24.0 / 5.0), expected,
+                anamorphic.var_x / anamorphic.var_y, 2.0 * std::sqrt(anamorphic.var_y));
     EXPECT_NEAR(anamorphic.var_x / anamorphic.var_y, 0.25, 0.25 * 0.03);
     EXPECT_NEAR(2.0 * std::sqrt(anamorphic.var_y) / expected, 1.0, 0.02);
 }
 
-// The defocus disc's outline, from the rays of one pixel over a 256 x 256 grid of lens samples: where each meets the
+// The defocus disc's outline, from the rays of one pixel over a 1024 x 1024 grid of lens samples: where each meets the
 // plane at S2, projected back through the pinhole, lies within the disc's shape. Six blades, rotation 0: corners on
 // the Y axis, an edge's normal on the X axis, extents R and R cos 30 (ratio 1 / cos 30 = 1.1547); rotated by 30
 // degrees the two swap; ratio 2 halves the X extent. Tolerance 0.5 %.
@@ -148,10 +155,10 @@ TEST(CameraDepthOfField, ApertureOutlineFollowsBladesRotationAndRatio) {
         double centre[3];
         point_at_depth(pinhole, s2, centre);
         ex = ey = 0.0;
-        for (int a = 0; a < 256; ++a)
-            for (int b = 0; b < 256; ++b) {
+        for (int a = 0; a < 1024; ++a)
+            for (int b = 0; b < 1024; ++b) {
                 double p[3];
-                point_at_depth(rays(kSize / 2.0f, kSize / 2.0f, (a + 0.5f) / 256.0f, (b + 0.5f) / 256.0f), s2, p);
+                point_at_depth(rays(kSize / 2.0f, kSize / 2.0f, (a + 0.5f) / 1024.0f, (b + 0.5f) / 1024.0f), s2, p);
                 ex = std::max(ex, std::abs(p[0] - centre[0]) / s2 * kPixelsPerTangent);
                 ey = std::max(ey, std::abs(p[1] - centre[1]) / s2 * kPixelsPerTangent);
             }
@@ -159,6 +166,8 @@ TEST(CameraDepthOfField, ApertureOutlineFollowsBladesRotationAndRatio) {
     const double cos30 = std::cos(kPi / 6.0);
     double ex, ey;
     extents(dof_camera(1.0f, 6), ex, ey);
+    std::printf("hexagon outline: extent %.3f px along a corner (Y), %.3f px along an edge's normal (X), ratio %.4f\n",
+                ey, ex, ey / ex);
     EXPECT_NEAR(ey / radius, 1.0, 0.005);
     EXPECT_NEAR(ex / radius, cos30, 0.005);
     EXPECT_NEAR(ey / ex, 1.0 / cos30, 0.005 / cos30);
@@ -297,9 +306,10 @@ TEST(CameraDepthOfField, ValidationNamesTheSetting) {
 // function of the seed (twice the same seed: the same film bit for bit; another seed: another film), and the lens is
 // really sampled (the frame differs from the pinhole's).
 TEST(CameraDepthOfField, GaussiansAreTracedAndDeterministic) {
+    const GaussianCloud cloud = random_cloud(3, 300, 0.8f);  // (the scene refers to it)
     Scene scene;
     scene.set_world(black_world());
-    scene.add_gaussians(random_cloud(3, 300, 0.8f), Matrix4::translation(0.0f, 0.0f, -4.0f));
+    scene.add_gaussians(cloud, Matrix4::translation(0.0f, 0.0f, -4.0f));
     Camera c = dof_camera(1.0f);
     c.focal_length_mm = 35.0f;
     c.focus_distance = 2.5f;
