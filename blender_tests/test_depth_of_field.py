@@ -8,7 +8,8 @@
 #   aperture, each moved across the lens and its image shifted so that the focus plane stays put (the thin lens is
 #   that average; with Blend Space As Trained, averaged as display values, as the film averages a pixel's samples):
 #   mean absolute difference <= 4 % of the mean pixel value and total light within 1.5 %, while the pinhole render
-#   differs by three times more or more; Camera Rays as Splats steps aside and the status bar says so; a seed gives one frame;
+#   differs by three times more or more; Camera Rays as Splats steps aside and the status bar says so; a seed gives
+#   one frame;
 # - polygon objects, compact points, spatial pieces (and Blender 5.3's own splats) render the same defocused frame.
 import math
 import unittest

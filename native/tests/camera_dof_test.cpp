@@ -136,7 +136,8 @@ TEST(CameraDepthOfField, BladesAndRatioShapeTheRenderedDisc) {
     EXPECT_NEAR(std::sqrt(hexagon.var_x * 24.0 / 5.0) / expected, 1.0, 0.02);
     EXPECT_NEAR(std::sqrt(hexagon.var_y * 24.0 / 5.0) / expected, 1.0, 0.02);
     const Moments anamorphic = image_moments(render_emitter(dof_camera(1.0f, 0, 2.0f), s2, 3.0, 1024), 3.0);
-    std::printf("hexagon: circumradius %.2f / %.2f px (x / y) for %.2f px; ratio 2: var_x / var_y %.4f, radius %.2f px\n",
+    std::printf("hexagon: circumradius %.2f / %.2f px (x / y) for %.2f px; ratio 2: var_x / var_y %.4f, "
+                "radius %.2f px\n",
                 std::sqrt(hexagon.var_x * 24.0 / 5.0), std::sqrt(hexagon.var_y * 24.0 / 5.0), expected,
                 anamorphic.var_x / anamorphic.var_y, 2.0 * std::sqrt(anamorphic.var_y));
     EXPECT_NEAR(anamorphic.var_x / anamorphic.var_y, 0.25, 0.25 * 0.03);

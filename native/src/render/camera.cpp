@@ -34,8 +34,8 @@ float fitted_sensor(const Camera& c) {
 }
 
 // Cycles' aperture radius in scene units (blender_camera_from_object): the f-stop clamped to 1e-5, then
-// lens (m) / (2 f-stop) for perspective and panoramic cameras (Blender's lens in millimetres read as metres per
-// thousand, whatever the scene's unit scale), 1 / (2 f-stop) for orthographic ones.
+// lens (m) / (2 f-stop) for perspective and panoramic cameras (the lens in millimetres times 1e-3, as scene units
+// whatever the scene's unit scale), 1 / (2 f-stop) for orthographic ones.
 float aperture_radius(const Camera& c) {
     if (!c.use_dof) return 0.0f;
     const float fstop = std::max(c.aperture_fstop, 1e-5f);
@@ -169,7 +169,8 @@ CameraRay CameraRayGenerator::operator()(float x, float y, float lens_u, float l
     // Clipping: a perspective or orthographic ray keeps the clip planes perpendicular to the view axis (distances
     // along the ray grow by 1 / cos of its angle to the axis: for perspective the pinhole ray's, as Cycles' nearclip *
     // z_inv, for orthographic the lens ray's); a panoramic one clips at the same distances along the ray.
-    const glm::vec3 o(ray.origin[0], ray.origin[1], ray.origin[2]), d(ray.direction[0], ray.direction[1], ray.direction[2]);
+    const glm::vec3 o(ray.origin[0], ray.origin[1], ray.origin[2]),
+        d(ray.direction[0], ray.direction[1], ray.direction[2]);
     const glm::vec3 ax(axis_x_[0], axis_x_[1], axis_x_[2]), ay(axis_y_[0], axis_y_[1], axis_y_[2]),
         fw(forward_[0], forward_[1], forward_[2]);
     float lens[2];
