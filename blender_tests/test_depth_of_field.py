@@ -3,7 +3,8 @@
 # - a mesh-only scene (emissive cubes before, at and behind the focus object) agrees with Cycles: mean absolute
 #   difference <= 4 % of the mean pixel value, and the 10-90 % width of the out-of-focus cube's edge within 0.5 px of
 #   Cycles' (the width the circle of confusion predicts is printed beside them); with use_dof off the same scene
-#   agrees as sharply and the depth-of-field settings change nothing;
+#   agrees as sharply and the depth-of-field settings change nothing; the focus object counts along the view axis
+#   (a bone of it too), and animated settings take each frame's values;
 # - Gaussians (a polygon object) out of focus equal the average of pinhole renders from points spread over the
 #   aperture, each moved across the lens and its image shifted so that the focus plane stays put (the thin lens is
 #   that average; with Blend Space As Trained, averaged as display values, as the film averages a pixel's samples):
@@ -176,6 +177,22 @@ class MeshesAgainstCycles(unittest.TestCase):
         camera.data.dof.focus_object, camera.data.dof.focus_subtarget = armature, "Target"
         bpy.context.view_layer.update()
         self.assertAlmostEqual(sync.camera_settings(scene, camera, WIDTH, HEIGHT)["focus_distance"], 6.0, places=5)
+
+    def test_animated_settings_take_each_frames_values(self):
+        # An animation renders each frame from the evaluated camera, as F12 of that frame does (final.py).
+        scene = mesh_scene()
+        dof = scene.camera.data.dof
+        dof.focus_object = None
+        for frame, distance, fstop in ((1, 2.0, 1.4), (10, 6.0, 4.0)):
+            dof.focus_distance, dof.aperture_fstop = distance, fstop
+            dof.keyframe_insert("focus_distance", frame=frame)
+            dof.keyframe_insert("aperture_fstop", frame=frame)
+        for frame, distance, fstop in ((1, 2.0, 1.4), (10, 6.0, 4.0)):
+            scene.frame_set(frame)
+            camera = scene.camera.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            settings = sync.camera_settings(scene, camera, WIDTH, HEIGHT)
+            self.assertAlmostEqual(settings["focus_distance"], distance, places=5)
+            self.assertAlmostEqual(settings["aperture_fstop"], fstop, places=5)
 
 
 def donut_scene(samples):
