@@ -281,9 +281,11 @@ class RenderEngine(unittest.TestCase):
             depsgraph = bpy.context.evaluated_depsgraph_get()
             window = camera.calc_matrix_camera(depsgraph, x=80, y=60)
             context = SimpleNamespace(
+                scene=scene,
                 region_data=SimpleNamespace(view_matrix=camera.matrix_world.inverted(), window_matrix=window,
-                                            is_perspective=not ortho),
-                space_data=SimpleNamespace(clip_start=camera.data.clip_start, clip_end=camera.data.clip_end))
+                                            is_perspective=not ortho, view_perspective="CAMERA"),
+                space_data=SimpleNamespace(clip_start=camera.data.clip_start, clip_end=camera.data.clip_end,
+                                           camera=None, use_local_camera=False))
             render_scene, _ = sync.build_render_scene(depsgraph)
             settings = sync.render_settings(scene, 80, 60, 1)
             settings["compositing"] = "STOCHASTIC"

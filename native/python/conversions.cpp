@@ -162,6 +162,7 @@ py::dict film_to_dict(Film&& film) {
     d["gaussian_candidates"] = film.stats.gaussian_candidates;
     d["gaussian_group_candidates"] = film.stats.gaussian_group_candidates;
     d["camera_ray_splatting"] = film.stats.camera_ray_splatting;
+    d["camera_rays_traced_reason"] = film.stats.camera_rays_traced_reason;
     d["splat_prepass_seconds"] = film.stats.splat_prepass_seconds;
     d["splat_prepass_cpu_seconds"] = film.stats.splat_prepass_cpu_seconds;
     d["build_seconds"] = film.stats.build_seconds;

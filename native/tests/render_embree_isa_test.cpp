@@ -72,10 +72,18 @@ struct RealScene {
     }
 };
 
-Film render_with(const std::string& config, const RealScene& rs, CameraType type, const RenderSettings& s) {
+Film render_with(const std::string& config, const RealScene& rs, CameraType type, const RenderSettings& s,
+                 bool depth_of_field = false) {
     Scene scene(config);
     scene.add_gaussians(rs.cloud);
-    return render(scene, rs.camera(type), s);
+    Camera camera = rs.camera(type);
+    if (depth_of_field) {
+        // Focused in front of the scene's centre, at a wide aperture: the lens samples change most rays.
+        camera.use_dof = true;
+        camera.focus_distance = 0.5f * rs.radius;
+        camera.aperture_fstop = type == CameraType::Orthographic ? 20.0f / rs.radius : 30e-3f / (0.1f * rs.radius);
+    }
+    return render(scene, camera, s);
 }
 
 }  // namespace
@@ -110,7 +118,7 @@ TEST(RenderEmbreeIsa, ForcedInstructionSetsSplitPackets) {
 
 // Gaussian-only films, bit for bit the same under every instruction set: sorted (flat and volumetric, a buffer
 // that overflows so that packets re-trace some of their rays while others are finished), stochastic, and the
-// camera models whose rays are traced as packets. The image is 61 x 45, so that the right and bottom packets have
+// camera models whose rays are traced as packets, with and without depth of field. The image is 61 x 45, so that the right and bottom packets have
 // inactive lanes.
 TEST(RenderEmbreeIsa, GaussianFilmsAreTheSameUnderEveryInstructionSet) {
     const RealScene rs;
@@ -123,6 +131,7 @@ TEST(RenderEmbreeIsa, GaussianFilmsAreTheSameUnderEveryInstructionSet) {
         GaussianMode mode;
         int k;
         double min_coverage;  // of pixels with alpha > 0.5 (the fisheye sees the scene in a small part of its disc)
+        bool depth_of_field = false;  // a thin lens: rays of a packet leave the lens at different points
     };
     const Case cases[] = {
         {"perspective sorted flat", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat, 96, 0.5},
@@ -131,6 +140,10 @@ TEST(RenderEmbreeIsa, GaussianFilmsAreTheSameUnderEveryInstructionSet) {
         {"orthographic sorted flat k=4", CameraType::Orthographic, Compositing::Sorted, GaussianMode::Flat, 4, 0.5},
         {"fisheye stochastic volumetric", CameraType::FisheyeEquisolid, Compositing::Stochastic,
          GaussianMode::Volumetric, 96, 0.05},
+        {"perspective sorted flat depth of field", CameraType::Perspective, Compositing::Sorted, GaussianMode::Flat,
+         96, 0.5, true},
+        {"orthographic stochastic volumetric k=4 depth of field", CameraType::Orthographic, Compositing::Stochastic,
+         GaussianMode::Volumetric, 4, 0.5, true},
     };
     for (const Case& c : cases) {
         RenderSettings s;
@@ -144,14 +157,14 @@ TEST(RenderEmbreeIsa, GaussianFilmsAreTheSameUnderEveryInstructionSet) {
         s.gaussian_mode = c.mode;
         s.gather_buffer_size = c.k;
         s.transparent_background = true;
-        const Film reference = render_with(configs[1], rs, c.camera, s);  // isa=sse4.2
+        const Film reference = render_with(configs[1], rs, c.camera, s, c.depth_of_field);  // isa=sse4.2
         // The scene must show Gaussians in most pixels, or equal films would prove little.
         std::size_t covered = 0;
         for (std::size_t p = 0; p < reference.pixel_count(); ++p) covered += reference.alpha()[p] > 0.5f;
         EXPECT_GT(double(covered), c.min_coverage * double(reference.pixel_count())) << c.name;
         for (const std::string& config : configs) {
             if (config == configs[1]) continue;
-            const Film film = render_with(config, rs, c.camera, s);
+            const Film film = render_with(config, rs, c.camera, s, c.depth_of_field);
             std::size_t differing = 0;
             for (std::size_t i = 0; i < film.rgba().size(); ++i) differing += film.rgba()[i] != reference.rgba()[i];
             EXPECT_EQ(differing, 0u) << c.name << ": rgba values differ between " << config << " and " << configs[1];

@@ -107,6 +107,21 @@ TEST(CameraNames, ModelsAndParametersByName) {
     EXPECT_FLOAT_EQ(c.focal_length_mm, 35.0f);
     EXPECT_EQ(c.sensor_fit, SensorFit::Vertical);
     EXPECT_EQ(c.camera_to_world.m, m.m);
+    // Depth of field by Blender's Camera.dof names.
+    table.set(c, "use_dof", true);
+    table.set(c, "focus_distance", 2.5);
+    table.set(c, "aperture_fstop", 1.4);
+    table.set(c, "aperture_blades", std::int64_t(6));
+    table.set(c, "aperture_rotation", 0.5);
+    table.set(c, "aperture_ratio", 2.0);
+    EXPECT_TRUE(c.use_dof);
+    EXPECT_FLOAT_EQ(c.focus_distance, 2.5f);
+    EXPECT_FLOAT_EQ(c.aperture_fstop, 1.4f);
+    EXPECT_EQ(c.aperture_blades, 6);
+    EXPECT_FLOAT_EQ(c.aperture_rotation, 0.5f);
+    EXPECT_FLOAT_EQ(c.aperture_ratio, 2.0f);
+    EXPECT_EQ(message_of([&] { table.set(c, "aperture_blades", 6.5); }),
+              "camera parameter 'aperture_blades' must be an integer (got 6.5)");
 
     // Every model has one name, and the name table gives it back.
     for (const auto& model : camera_model_names().values)

@@ -17,7 +17,9 @@
 //               "lens": 50, "sensor_width": 36, "sensor_height": 24, "sensor_fit": "AUTO|HORIZONTAL|VERTICAL",
 //               "shift_x": 0, "shift_y": 0, "clip_start": 0.1, "clip_end": 1000, "ortho_scale": 6,
 //               "fisheye_fov": 3.14159, "fisheye_lens": 10.5, "longitude_min": -3.14159, "longitude_max": 3.14159,
-//               "latitude_min": -1.5708, "latitude_max": 1.5708},
+//               "latitude_min": -1.5708, "latitude_max": 1.5708,
+//               "use_dof": false, "focus_distance": 10, "aperture_fstop": 2.8, "aperture_blades": 0,
+//               "aperture_rotation": 0, "aperture_ratio": 1},   (depth of field: Blender's Camera.dof)
 //    "lights": [{"type": "point|sun|spot|area|disk", "color": [1,1,1], "power": 1000,
 //                "position": [...], "target": [...]  (or "matrix"), "size": [x,y], "spot_size": 0.785,
 //                "spot_blend": 0.15, "angle": 0}],

@@ -18,13 +18,15 @@ UPDATE_SECONDS = 1.0
 # Diagnostics of the last final render, for status displays and tests: the samples of each partial result shown
 # (with its time from the render's start), and the samples and cancel state of the image kept, its mean samples per
 # pixel and camera rays (adaptive sampling takes fewer), the rendered rectangle (x, y from the bottom, w, h), and
-# whether camera-ray splatting drew the camera rays (with its pre-pass's time), and whether it was denoised.
+# whether camera-ray splatting drew the camera rays (with its pre-pass's time), and whether it was denoised; `notice`:
+# the information reported in the status bar (why camera rays were traced though Camera Rays as Splats is on), else "".
 # `stages`: CPU and wall seconds of each stage of the frame (read, convert, scene, bvh, prepass, samples, film,
 # denoise, write); `entered`, `left`: (process CPU, wall) clocks when render() was called and when it returned; `scene`: how
 # the frame got its native scene ("new", or with Persistent Data "kept" when nothing in it changed, "updated" when
 # changes were applied to the last frame's).
 last_render = {"partial_results": [], "samples": 0, "cancelled": False, "mean_samples": 0.0, "camera_rays": 0,
-               "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "splat_prepass_seconds": 0.0,
+               "region": None, "render_seconds": 0.0, "camera_ray_splatting": False, "notice": "",
+               "splat_prepass_seconds": 0.0,
                "stages": {}, "entered": None, "left": None, "scene": "new", "denoised": False}
 
 
@@ -149,10 +151,13 @@ def render_final(engine, depsgraph):
               f"{film['samples']} of {settings.samples} samples{' (cancelled)' if film['cancelled'] else ''} "
               f"(mean {mean_samples:.1f} per pixel), {w} x {h} pixels, {stats.splats:,} splats, "
               f"{stats.triangles:,} triangles")
-        if settings.camera_ray_splatting and not film["camera_ray_splatting"]:
+        notice = ""
+        if film["camera_rays_traced_reason"]:
             # Information, not a warning: with the setting on by default, every Lit render would otherwise warn.
-            engine.report({"INFO"}, "Camera Rays as Splats needs a perspective camera and only Baked splats: "
-                                     "this render's camera rays were ray traced")
+            # The core says why it stepped aside ("needs a camera without depth of field", ...).
+            notice = (f"Camera Rays as Splats {film['camera_rays_traced_reason']}: this render's camera rays were "
+                      f"ray traced")
+            engine.report({"INFO"}, notice)
         denoised = False
         if scene.raysplats.use_denoising and film["samples"] > 0:
             with clock.stage("denoise"):
@@ -174,6 +179,6 @@ def render_final(engine, depsgraph):
                        entered=entered, left=(time.process_time(), time.perf_counter()))
     last_render.update(samples=film["samples"], cancelled=film["cancelled"], mean_samples=mean_samples, denoised=denoised,
                        camera_rays=film["camera_rays"], region=(x, y, w, h), render_seconds=film["render_seconds"],
-                       camera_ray_splatting=film["camera_ray_splatting"],
+                       camera_ray_splatting=film["camera_ray_splatting"], notice=notice,
                        splat_prepass_seconds=film["splat_prepass_seconds"])
     engine.update_progress(1.0)

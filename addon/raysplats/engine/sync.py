@@ -525,7 +525,41 @@ def camera_settings(scene, camera_object, width, height):
             camera[key] = float(getattr(source, key))
     else:
         camera["type"] = cam.type  # PERSP or ORTHO
+    camera.update(depth_of_field(camera_object))
     return camera
+
+
+def focus_distance(camera_object):
+    """Camera.dof's focus distance in scene units, as Cycles takes it (blender/camera.cpp,
+    blender_camera_focal_distance): with a Focus Object (and a bone of it, Focus Bone), that point's distance from the
+    camera along the camera's view axis, else the Focus Distance."""
+    dof = camera_object.data.dof
+    target = dof.focus_object
+    if target is None:
+        return float(dof.focus_distance)
+    matrix = target.matrix_world
+    bone = target.pose.bones.get(dof.focus_subtarget) if target.pose and dof.focus_subtarget else None
+    if bone is not None:
+        matrix = matrix @ bone.matrix
+    view_axis = camera_object.matrix_world.col[2].xyz.normalized()
+    return abs(view_axis.dot(camera_object.matrix_world.translation - matrix.translation))
+
+
+def depth_of_field(camera_object, lens=None):
+    """The core's depth-of-field parameters of a camera object (Camera Properties > Depth of Field): empty when it
+    has none (use_dof off, or an object other than a camera). `lens`: the focal length (mm) the core is given when it
+    is not the camera's own (the viewport's, which includes its zoom): the f-stop is scaled so that the aperture keeps
+    its size, lens / (2 f-stop) of the camera's own lens, as Cycles' viewport keeps it."""
+    cam = camera_object.data
+    if not isinstance(cam, bpy.types.Camera) or not cam.dof.use_dof:
+        return {}
+    dof = cam.dof
+    fstop = float(dof.aperture_fstop)
+    if lens is not None and cam.type != "ORTHO":
+        fstop *= lens / cam.lens
+    return {"use_dof": True, "focus_distance": focus_distance(camera_object), "aperture_fstop": fstop,
+            "aperture_blades": int(dof.aperture_blades), "aperture_rotation": float(dof.aperture_rotation),
+            "aperture_ratio": float(dof.aperture_ratio)}
 
 
 def _hash_uint2(kx, ky):

@@ -118,8 +118,10 @@ def _start_polling(engine, state):
         bpy.app.timers.register(lambda: _poll(engine, state), first_interval=POLL_SECONDS)
 
 
-def view_camera(context, width, height):
-    """A native camera matching the 3D view (perspective or orthographic), from its matrices."""
+def view_camera(context, width, height, depsgraph=None):
+    """A native camera matching the 3D view (perspective or orthographic), from its matrices. Looking through the
+    scene's camera (the view's own with Local Camera), it has that camera's depth of field (Cycles' viewport does the
+    same); any other view is a pinhole."""
     region_3d = context.region_data
     view_to_world = np.array(region_3d.view_matrix.inverted(), dtype=np.float32)
     projection = np.array(region_3d.window_matrix, dtype=np.float64)
@@ -138,6 +140,13 @@ def view_camera(context, width, height):
         camera.update(type="PERSP", lens=float(projection[0, 0] * 36.0 / 2.0))
     else:
         camera.update(type="ORTHO", ortho_scale=float(2.0 / projection[0, 0]))
+    if region_3d.view_perspective == "CAMERA":
+        space = context.space_data
+        camera_object = space.camera if space.use_local_camera else context.scene.camera
+        if camera_object is not None:
+            if depsgraph is not None:
+                camera_object = camera_object.evaluated_get(depsgraph)
+            camera.update(sync.depth_of_field(camera_object, lens=camera.get("lens")))
     return camera
 
 
@@ -223,15 +232,17 @@ def view_draw(engine, context, depsgraph):
     if state.sync is None:
         return  # the last build failed; nothing to draw until the scene changes
     width, height = region.width, region.height
-    camera = view_camera(context, width, height)
+    camera = view_camera(context, width, height, depsgraph)
     settings = sync.render_settings(scene, width, height, scene.raysplats.viewport_samples)
-    key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)), camera.get("lens"),
-           camera.get("ortho_scale"), tuple(sorted(settings.items())), scene.raysplats.use_preview_denoising)
+    key = (width, height, tuple(np.round(camera["matrix"].ravel(), 6)),
+           tuple(sorted((name, value) for name, value in camera.items() if name != "matrix")),
+           tuple(sorted(settings.items())), scene.raysplats.use_preview_denoising)
     if key != state.key:
         _retire(state)
         # The old image stays on screen until the new one comes, counted as no samples of the new view.
         preview_width, preview_height = max(1, width // PREVIEW_DIVISOR), max(1, height // PREVIEW_DIVISOR)
-        state.view = (key, view_camera(context, preview_width, preview_height), preview_width, preview_height)
+        state.view = (key, view_camera(context, preview_width, preview_height, depsgraph), preview_width,
+                      preview_height)
         _start_preview(engine, state, scene, *state.view)
     elif state.retiring:
         _retire(state)

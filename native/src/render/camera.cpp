@@ -1,8 +1,9 @@
-// Camera models. Conventions follow Cycles 3.x (intern/cycles/blender/camera.cpp for sensor fit and shift,
-// intern/cycles/kernel/camera/projection.h for the panoramic mappings), written in Blender's camera frame:
-// forward = -Z, right = +X, up = +Y.
+// Camera models. Conventions follow Cycles 3.x (intern/cycles/blender/camera.cpp for sensor fit, shift and the
+// aperture, intern/cycles/kernel/camera/projection.h for the panoramic mappings, intern/cycles/kernel/camera/camera.h
+// for the thin lens), written in Blender's camera frame: forward = -Z, right = +X, up = +Y.
 #include "raysplats/render/camera.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -32,13 +33,58 @@ float fitted_sensor(const Camera& c) {
     return c.sensor_fit == SensorFit::Vertical ? c.sensor_height_mm : c.sensor_width_mm;
 }
 
+// Cycles' aperture radius in scene units (blender_camera_from_object): the f-stop clamped to 1e-5, then
+// lens (m) / (2 f-stop) for perspective and panoramic cameras (the lens in millimetres times 1e-3, as scene units
+// whatever the scene's unit scale), 1 / (2 f-stop) for orthographic ones.
+float aperture_radius(const Camera& c) {
+    if (!c.use_dof) return 0.0f;
+    const float fstop = std::max(c.aperture_fstop, 1e-5f);
+    return c.type == CameraType::Orthographic ? 1.0f / (2.0f * fstop) : c.focal_length_mm * 1e-3f / (2.0f * fstop);
+}
+
+// Uniform numbers (u, v) in [0, 1)^2 to the unit disc by Shirley and Chiu's concentric mapping (Cycles'
+// sample_uniform_disk).
+glm::vec2 concentric_disc(float u, float v) {
+    const float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
+    if (a == 0.0f && b == 0.0f) return glm::vec2(0.0f);
+    float r, phi;
+    if (a * a > b * b) {
+        r = a;
+        phi = 0.25f * kPi * (b / a);
+    } else {
+        r = b;
+        phi = 0.5f * kPi - 0.25f * kPi * (a / b);
+    }
+    return glm::vec2(r * std::cos(phi), r * std::sin(phi));
+}
+
+// Uniform numbers to a regular polygon of `corners` sides inscribed in the unit circle (Cycles'
+// regular_polygon_sample): u picks one of the triangles from the centre to a side, then a uniform point in it; the
+// polygon's corners lie at rotation + (2 k + 1) pi / corners.
+glm::vec2 regular_polygon(int corners, float rotation, float u, float v) {
+    const float n = float(corners);
+    const float corner = std::floor(u * n);
+    u = std::sqrt(u * n - corner);
+    v = v * u;
+    u = 1.0f - u;
+    const float angle = kPi / n;
+    const glm::vec2 p((u + v) * std::cos(angle), (u - v) * std::sin(angle));
+    rotation += corner * 2.0f * angle;
+    const float cr = std::cos(rotation), sr = std::sin(rotation);
+    return glm::vec2(cr * p.x - sr * p.y, sr * p.x + cr * p.y);
+}
+
+glm::vec3 unit_column(const Matrix4& m, int column) {
+    return glm::normalize(glm::vec3(m(0, column), m(1, column), m(2, column)));
+}
+
 }  // namespace
 
 void Camera::validate() const {
     camera_to_world.check_affine("camera_to_world");
     for (float v : {focal_length_mm, sensor_width_mm, sensor_height_mm, shift_x, shift_y, clip_start, clip_end,
                     ortho_scale, longitude_min, longitude_max, latitude_min, latitude_max, fisheye_fov,
-                    fisheye_lens_mm})
+                    fisheye_lens_mm, focus_distance, aperture_fstop, aperture_rotation, aperture_ratio})
         require(finite(v) || v == clip_end, "parameters must be finite (NaN or Inf given)");
     require(!std::isnan(clip_end), "clip_end is NaN");
     require(focal_length_mm > 0.0f, "focal length must be > 0 mm");
@@ -49,6 +95,10 @@ void Camera::validate() const {
     require(latitude_max > latitude_min, "equirectangular latitude range is empty");
     require(fisheye_fov > 0.0f && fisheye_fov <= 2.0f * kPi + 1e-4f, "fisheye fov must be in (0, 2 pi]");
     require(fisheye_lens_mm > 0.0f, "fisheye lens must be > 0 mm");
+    require(focus_distance >= 0.0f, "focus distance must be >= 0");
+    require(aperture_fstop >= 0.0f, "aperture f-stop must be >= 0");
+    require(aperture_blades >= 0, "aperture blades must be >= 0");
+    require(aperture_ratio > 0.0f, "aperture ratio must be > 0");
 }
 
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
@@ -81,6 +131,81 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
             sensor_w_ = sensor_h_ * w / h;
         }
     }
+    aperture_radius_ = aperture_radius(c);
+    if (aperture_radius_ > 0.0f) {
+        // Cycles clamps the focus distance to 1e-5 and draws a disc for fewer than 3 blades (scene/camera.cpp).
+        focus_distance_ = std::max(c.focus_distance, 1e-5f);
+        blades_ = c.aperture_blades < 3 ? 0 : c.aperture_blades;
+        const glm::vec3 ax = unit_column(c.camera_to_world, 0), ay = unit_column(c.camera_to_world, 1),
+                        fw = -unit_column(c.camera_to_world, 2);
+        for (int i = 0; i < 3; ++i) {
+            axis_x_[i] = ax[i];
+            axis_y_[i] = ay[i];
+            forward_[i] = fw[i];
+        }
+    }
+}
+
+void CameraRayGenerator::aperture_point(float lens_u, float lens_v, float point[2]) const {
+    // Cycles' camera_sample_aperture: the unit disc or polygon, its X divided by the ratio, times the radius.
+    glm::vec2 p = blades_ == 0 ? concentric_disc(lens_u, lens_v)
+                               : regular_polygon(blades_, camera_.aperture_rotation, lens_u, lens_v);
+    p.x /= camera_.aperture_ratio;
+    point[0] = p.x * aperture_radius_;
+    point[1] = p.y * aperture_radius_;
+}
+
+CameraRay CameraRayGenerator::operator()(float x, float y, float lens_u, float lens_v) const {
+    CameraRay ray = (*this)(x, y);
+    if (!ray.valid || aperture_radius_ <= 0.0f) return ray;
+    // In world space, from the pinhole ray (origin o, unit direction d): the ray leaves the aperture point and meets
+    // the pinhole ray where that reaches the focus (Cycles, kernel/camera/camera.h):
+    //   perspective   (camera_sample_perspective): lens point o + u X + v Y, focus point o + d f / cos, cos = d . view
+    //                 axis (the focus plane is perpendicular to the view axis);
+    //   orthographic  (camera_sample_orthographic): the same from the pixel's point o on the camera plane, where the
+    //                 pinhole ray runs along the view axis (cos = 1);
+    //   panoramic     (camera_sample_panorama): focus point o + d f (a sphere), the lens in the plane normal to d, its
+    //                 axes U = the view axis made normal to d, V = d x U.
+    // Clipping: a perspective or orthographic ray keeps the clip planes perpendicular to the view axis (distances
+    // along the ray grow by 1 / cos of its angle to the axis: for perspective the pinhole ray's, as Cycles' nearclip *
+    // z_inv, for orthographic the lens ray's); a panoramic one clips at the same distances along the ray.
+    const glm::vec3 o(ray.origin[0], ray.origin[1], ray.origin[2]),
+        d(ray.direction[0], ray.direction[1], ray.direction[2]);
+    const glm::vec3 ax(axis_x_[0], axis_x_[1], axis_x_[2]), ay(axis_y_[0], axis_y_[1], axis_y_[2]),
+        fw(forward_[0], forward_[1], forward_[2]);
+    float lens[2];
+    aperture_point(lens_u, lens_v, lens);
+    glm::vec3 focus, lens_point;
+    switch (camera_.type) {
+        case CameraType::Perspective:
+            focus = o + d * (focus_distance_ / glm::dot(d, fw));
+            lens_point = o + ax * lens[0] + ay * lens[1];
+            break;
+        case CameraType::Orthographic:
+            focus = o + d * focus_distance_;
+            lens_point = o + ax * lens[0] + ay * lens[1];
+            break;
+        case CameraType::Equirectangular:
+        case CameraType::FisheyeEquidistant:
+        case CameraType::FisheyeEquisolid: {
+            focus = o + d * focus_distance_;
+            glm::vec3 u = fw - glm::dot(d, fw) * d;
+            const float ul = glm::length(u);
+            // Looking straight along the view axis U is undefined (Cycles divides by zero there): any normal will do.
+            u = ul > 1e-6f ? u / ul : ax;
+            lens_point = o + u * lens[0] + glm::cross(d, u) * lens[1];
+            break;
+        }
+    }
+    const glm::vec3 dir = glm::normalize(focus - lens_point);
+    const float clip_scale = camera_.type == CameraType::Orthographic ? 1.0f / glm::dot(dir, fw) : 1.0f;
+    for (int i = 0; i < 3; ++i) {
+        ray.origin[i] = lens_point[i];
+        ray.direction[i] = dir[i];
+    }
+    ray.t_min *= clip_scale;
+    ray.t_max *= clip_scale;
+    return ray;
 }
 
 CameraRayGenerator::PinholeProjection CameraRayGenerator::pinhole_projection() const {

@@ -48,7 +48,20 @@ const ParameterTable<Camera>& camera_parameters() {
          {"latitude_min", T::Real, "equirectangular: latitude at the bottom edge (radians)", &member<&C::latitude_min>, {}},
          {"latitude_max", T::Real, "equirectangular: latitude at the top edge (radians)", &member<&C::latitude_max>, {}},
          {"fisheye_fov", T::Real, "fisheye: full field of view (radians)", &member<&C::fisheye_fov>, {}},
-         {"fisheye_lens", T::Real, "equisolid fisheye: focal length (mm)", &member<&C::fisheye_lens_mm>, {}}}};
+         {"fisheye_lens", T::Real, "equisolid fisheye: focal length (mm)", &member<&C::fisheye_lens_mm>, {}},
+         {"use_dof", T::Bool, "depth of field (a thin lens) instead of a pinhole", &member<&C::use_dof>, {}},
+         {"focus_distance", T::Real,
+          "depth of field: distance in focus, along the view axis (panoramic: along the ray), scene units",
+          &member<&C::focus_distance>, {}},
+         {"aperture_fstop", T::Real,
+          "depth of field: f-stop; aperture radius = lens / (2 f-stop), 1 / (2 f-stop) for ORTHO (Cycles)",
+          &member<&C::aperture_fstop>, {}},
+         {"aperture_blades", T::Integer, "depth of field: sides of a polygonal aperture (0: round)",
+          &member<&C::aperture_blades>, {}},
+         {"aperture_rotation", T::Real, "depth of field: rotation of the polygonal aperture (radians)",
+          &member<&C::aperture_rotation>, {}},
+         {"aperture_ratio", T::Real, "depth of field: anamorphic ratio (the aperture's width divided by it)",
+          &member<&C::aperture_ratio>, {}}}};
     return table;
 }
 

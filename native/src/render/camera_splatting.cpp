@@ -13,10 +13,18 @@ namespace raysplats {
 
 bool CameraSplatting::applies(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                               const GaussianShader& shader) {
-    if (!settings.camera_ray_splatting || camera.type != CameraType::Perspective) return false;
+    return settings.camera_ray_splatting && !traced_reason(scene, settings, camera, shader);
+}
+
+const char* CameraSplatting::traced_reason(const Scene::Impl& scene, const RenderSettings& settings,
+                                           const Camera& camera, const GaussianShader& shader) {
+    if (!settings.camera_ray_splatting) return nullptr;
+    if (camera.type != CameraType::Perspective) return "needs a perspective camera";
+    if (CameraRayGenerator(camera, settings.width, settings.height).depth_of_field())
+        return "needs a camera without depth of field";
     for (const auto& set : scene.gaussians)
-        if (shader.shading(set->index) != GaussianShading::Baked) return false;
-    return true;
+        if (shader.shading(set->index) != GaussianShading::Baked) return "needs every Gaussian object Baked";
+    return nullptr;
 }
 
 CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,

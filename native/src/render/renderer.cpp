@@ -57,7 +57,11 @@ std::unique_ptr<const CameraSplatting> prepare_splatting(const Scene::Impl& impl
                                                          const ShadowVisibility& shadow,
                                                          const std::atomic<bool>* cancel, RenderStats& stats) {
     std::unique_ptr<const CameraSplatting> splatting;
-    if (!CameraSplatting::applies(impl, settings, camera, tracer.shader())) return splatting;
+    if (const char* reason = CameraSplatting::traced_reason(impl, settings, camera, tracer.shader())) {
+        stats.camera_rays_traced_reason = reason;
+        return splatting;
+    }
+    if (!settings.camera_ray_splatting) return splatting;
     PhaseClock clock(stats.splat_prepass_seconds, stats.splat_prepass_cpu_seconds);
     splatting = std::make_unique<const CameraSplatting>(impl, settings, camera, shadow, cancel);
     clock.stop();

@@ -81,7 +81,16 @@ std::uint64_t TileSampler::start_packet(TileState& tile, Packet& packet) const {
         }
         packet.sample_x[l] = float(x) + jx;
         packet.sample_y[l] = float(y) + jy;
-        const CameraRay cr = camera_rays_(x + jx, y + jy);
+        // Depth of field: the lens position is the stream's next two numbers (none are drawn without it, so a
+        // pinhole camera's samples keep their numbers).
+        CameraRay cr;
+        if (camera_rays_.depth_of_field()) {
+            const float lens_u = rng.next();
+            const float lens_v = rng.next();
+            cr = camera_rays_(x + jx, y + jy, lens_u, lens_v);
+        } else {
+            cr = camera_rays_(x + jx, y + jy);
+        }
         if (!cr.valid) {
             tile.samples.add_empty_sample(x, y);
             ++empty;

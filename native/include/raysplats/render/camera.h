@@ -1,5 +1,8 @@
 // Cameras of Blender (docs/design.md §6): perspective, orthographic and the panoramic models of Cycles. A camera looks
 // down its local -Z axis with +Y up and +X right; `camera_to_world` places it (Blender's matrix_world).
+// Depth of field is Cycles' thin lens for every model (Camera.dof in Blender): a ray leaves a point of the aperture
+// (a disc, or a polygon of `aperture_blades` sides, its width divided by `aperture_ratio`) and passes through the
+// point its pinhole ray reaches at the focus distance, so what lies there is sharp and the rest is blurred.
 #pragma once
 
 #include "raysplats/render/transform.h"
@@ -41,8 +44,26 @@ struct Camera {
     float fisheye_fov = 3.14159265358979f;
     float fisheye_lens_mm = 10.5f;
 
+    // Depth of field, Blender's Camera.dof; off (a pinhole) unless use_dof. The aperture's radius follows Cycles
+    // (intern/cycles/blender/camera.cpp): focal length in metres / (2 f-stop) in scene units for perspective and
+    // panoramic cameras (the perspective `focal_length_mm`, also for fisheyes), 1 / (2 f-stop) for orthographic; an
+    // f-stop below 1e-5 counts as 1e-5.
+    bool use_dof = false;
+    // Scene units: the distance of the plane in focus along the view axis (perspective, orthographic), or of the
+    // sphere in focus around the camera (panoramic). A front end with a focus object gives the object's distance
+    // along the view axis, as Cycles does.
+    float focus_distance = 10.0f;
+    float aperture_fstop = 2.8f;
+    // 0 (or fewer than 3): a round aperture; else a regular polygon of that many sides, rotated by
+    // `aperture_rotation` (radians) from the camera's +X axis toward +Y.
+    int aperture_blades = 0;
+    float aperture_rotation = 0.0f;
+    // Anamorphic bokeh: the aperture's extent along the camera's X axis is divided by the ratio.
+    float aperture_ratio = 1.0f;
+
     // Throws InvalidArgument for NaN/Inf, non-positive lens/sensor/scale, clip_end <= clip_start, a camera
-    // matrix that is not affine, or empty angle ranges.
+    // matrix that is not affine, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
+    // distance or blade count.
     void validate() const;
 };
 
@@ -64,7 +85,18 @@ CameraRay generate_camera_ray(const Camera& camera, int width, int height, float
 class CameraRayGenerator {
 public:
     CameraRayGenerator(const Camera& camera, int width, int height);
+    // The pinhole ray (through the centre of the lens).
     CameraRay operator()(float x, float y) const;
+
+    // Whether the camera has depth of field (use_dof with an aperture of non-zero size).
+    bool depth_of_field() const { return aperture_radius_ > 0.0f; }
+    // With depth of field, the ray of image position (x, y) through the aperture point that (lens_u, lens_v), two
+    // uniform numbers in [0, 1), choose (Cycles' camera_sample_aperture: a concentric disc or a regular polygon);
+    // without, the pinhole ray. The clip distances are those of the pinhole ray, measured from the aperture point.
+    CameraRay operator()(float x, float y, float lens_u, float lens_v) const;
+    // The aperture point of (lens_u, lens_v) in the lens plane, scene units along the camera's X and Y axes (for
+    // panoramic cameras, along the frame the thin-lens ray builds around each direction).
+    void aperture_point(float lens_u, float lens_v, float point[2]) const;
 
     // Perspective: the pinhole projection these rays invert. A camera-space point (X, Y, Z) (looking down -Z) at
     // depth z = -Z lies at image position x = cx + fx X / z, y = cy - fy Y / z, in the pixel units above.
@@ -83,6 +115,13 @@ private:
     float extent_ = 0.0f;    // perspective: fitted sensor / focal length; orthographic: ortho scale
     float half_w_ = 0.0f, half_h_ = 0.0f;  // perspective/orthographic: half image extents
     float sensor_w_ = 0.0f, sensor_h_ = 0.0f;  // equisolid fisheye: the fitted sensor (mm)
+    // Depth of field: the aperture's radius (0 without) and focus distance in scene units, Cycles' blade count (0
+    // for a disc), and the camera's X, Y and view axes in world space as unit vectors (the lens is measured in
+    // scene units whatever the camera matrix's scale, as Cycles clears it).
+    float aperture_radius_ = 0.0f;
+    float focus_distance_ = 0.0f;
+    int blades_ = 0;
+    float axis_x_[3] = {1, 0, 0}, axis_y_[3] = {0, 1, 0}, forward_[3] = {0, 0, -1};
 };
 
 }  // namespace raysplats

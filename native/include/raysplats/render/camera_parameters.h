@@ -15,7 +15,9 @@ const NameTable<CameraType>& camera_model_names();
 const NameTable<SensorFit>& sensor_fit_names();
 
 // type, matrix, lens, sensor_width, sensor_height, sensor_fit, shift_x, shift_y, clip_start, clip_end,
-// ortho_scale, longitude_min/max, latitude_min/max, fisheye_fov, fisheye_lens: Blender's names for them.
+// ortho_scale, longitude_min/max, latitude_min/max, fisheye_fov, fisheye_lens, and depth of field's use_dof,
+// focus_distance, aperture_fstop, aperture_blades, aperture_rotation, aperture_ratio: Blender's names for them
+// (Camera.dof's for the last six).
 const ParameterTable<Camera>& camera_parameters();
 
 }  // namespace raysplats

@@ -106,6 +106,9 @@ struct RenderStats {
     // does not apply to), the time of its pre-pass, and what the pre-pass holds: splats (Gaussians in view), tile list
     // entries, and the bytes of both.
     bool camera_ray_splatting = false;
+    // With the setting on, why it did not draw them (CameraSplatting::traced_reason: "needs a perspective camera",
+    // "needs a camera without depth of field", "needs every Gaussian object Baked"); empty when it did or was off.
+    std::string camera_rays_traced_reason;
     double splat_prepass_seconds = 0.0;
     std::uint64_t splats = 0;
     std::uint64_t splat_tile_entries = 0;
