@@ -36,6 +36,19 @@ def reset_render_scene(width, height, samples):
     return scene
 
 
+def use_cycles_on_cpu(scene, samples, pixel_filter=("BOX", 1.0), seed=1):
+    """Cycles on the CPU as the agreement tests compare with: a fixed sample count (adaptive sampling and denoising
+    off), the pixel filter (type, width) and the seed given."""
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.samples = samples
+    cycles.use_adaptive_sampling = False
+    cycles.use_denoising = False
+    cycles.pixel_filter_type, cycles.filter_width = pixel_filter
+    cycles.seed = seed
+    return cycles
+
+
 def native():
     from raysplats import native as native_module
     return native_module.core()

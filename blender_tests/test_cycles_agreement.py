@@ -92,22 +92,15 @@ def build_scene(distribution="GGX"):
 def render(scene, engine, name):
     scene.render.engine = engine
     if engine == "CYCLES":
-        cycles = scene.cycles
-        cycles.device = "CPU"
-        cycles.samples = SAMPLES
-        cycles.use_adaptive_sampling = False
-        cycles.use_denoising = False
+        # A 1-pixel box filter: uniform samples over the pixel, as RaySplats' jitter (a 0.01 filter width would
+        # sample pixel centres only and alias every edge).
+        cycles = st.use_cycles_on_cpu(scene, SAMPLES, pixel_filter=("BOX", 1.0), seed=1)
         cycles.max_bounces = cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = 4
         cycles.transparent_max_bounces = 8
         cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
         cycles.caustics_reflective = cycles.caustics_refractive = False
         cycles.blur_glossy = 0.0
         cycles.light_sampling_threshold = 0.0
-        # A 1-pixel box filter: uniform samples over the pixel, as RaySplats' jitter (a 0.01 filter width would
-        # sample pixel centres only and alias every edge).
-        cycles.pixel_filter_type = "BOX"
-        cycles.filter_width = 1.0
-        cycles.seed = 1
     else:
         scene.raysplats.samples = SAMPLES
         # Every pixel at the full sample count: the 3 % bound was set without adaptive sampling, whose stopped

@@ -69,11 +69,7 @@ def new_scene(falloff="QUADRATIC"):
     scene.camera = camera
     scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
     scene.raysplats.use_adaptive_sampling = False
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
-    scene.cycles.samples = 4
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.device = "CPU"
+    st.use_cycles_on_cpu(scene, 4, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
     for name in PASSES:
         setattr(bpy.context.view_layer, name, True)
     return scene

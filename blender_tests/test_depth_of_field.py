@@ -80,15 +80,7 @@ def mesh_scene():
 def render(scene, engine, name):
     scene.render.engine = engine
     if engine == "CYCLES":
-        cycles = scene.cycles
-        cycles.device = "CPU"
-        cycles.samples = CYCLES_SAMPLES
-        cycles.use_adaptive_sampling = False
-        cycles.use_denoising = False
-        cycles.max_bounces = 0
-        cycles.pixel_filter_type = "BOX"
-        cycles.filter_width = 1.0
-        cycles.seed = 1
+        st.use_cycles_on_cpu(scene, CYCLES_SAMPLES).max_bounces = 0
     else:
         scene.raysplats.samples = CYCLES_SAMPLES
         scene.raysplats.use_adaptive_sampling = False
