@@ -68,6 +68,34 @@ class RenderPasses(unittest.TestCase):
         combined_alpha = exr[f"{layer}.Combined.A"]
         self.assertTrue(np.all(combined_alpha == 1.0))  # no Film > Transparent: opaque
 
+    def test_denoising_passes_hold_the_base_colour_and_normal_only_when_checked(self):
+        # The plane's base colour (linear) is its Denoising Albedo, the world's colour the background's (as Cycles'
+        # background adds its colour); the normal is the plane's, 0 for the world.
+        base_color = (0.2, 0.5, 0.7)
+        material = bpy.data.materials.new("Base")
+        material.use_nodes = True
+        material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*base_color, 1.0)
+        bpy.data.objects["Plane"].data.materials.append(material)
+        scene, view_layer = bpy.context.scene, bpy.context.view_layer
+        self.assertFalse(view_layer.raysplats_passes.use_pass_denoising_albedo)
+        self.assertFalse(view_layer.raysplats_passes.use_pass_denoising_normal)
+        # Denoising on (where Blender has a denoiser) computes the guides but writes no pass unless checked.
+        scene.raysplats.use_denoising = True
+        exr = self.render_exr("passes_denoise_unchecked")
+        self.assertEqual({name.split(".")[1] for name in exr}, {"Combined"})
+        scene.raysplats.use_denoising = False
+        view_layer.raysplats_passes.use_pass_denoising_albedo = True
+        view_layer.raysplats_passes.use_pass_denoising_normal = True
+        exr = self.render_exr("passes_denoising")
+        layer = next(name.split(".")[0] for name in exr)
+        albedo = np.stack([exr[f"{layer}.Denoising Albedo.{c}"] for c in "RGB"], axis=-1)
+        normal = np.stack([exr[f"{layer}.Denoising Normal.{c}"] for c in "XYZ"], axis=-1)
+        left, right = np.s_[:, 2:18], np.s_[:, 22:]
+        np.testing.assert_allclose(albedo[left], np.broadcast_to(base_color, albedo[left].shape), atol=1e-6)
+        np.testing.assert_allclose(albedo[right], 0.1, atol=1e-6)
+        np.testing.assert_allclose(normal[left], np.broadcast_to((0.0, 0.0, 1.0), normal[left].shape), atol=1e-6)
+        self.assertTrue(np.all(normal[right] == 0.0))
+
     def test_film_transparent_makes_the_background_transparent(self):
         bpy.context.scene.render.film_transparent = True  # RaySplats' Film panel draws this check box
         exr = self.render_exr("passes_transparent")

@@ -7,16 +7,15 @@
 
 #include "raysplats/errors.h"
 #include "raysplats/render/renderer.h"
+#include "half_floor_scene.h"
 #include "render_test_util.h"
 
 using namespace raysplats;
 using namespace raysplats::testing;
+using namespace raysplats::testing::half_floor;
 
 namespace {
 
-constexpr int kWidth = 32, kHeight = 24;
-constexpr float kCameraHeight = 10.0f, kOrthoScale = 8.0f;
-constexpr float kLayerZ = 2.0f, kSigma = 0.7f, kOpacity = 0.9f, kCentreX = 1.5f;
 constexpr float kMistStart = 3.0f, kMistDepth = 8.0f;
 
 // Cycles' mist (kernel/film/data_passes.h).
@@ -56,27 +55,6 @@ struct DataPassScene {
     }
 };
 
-RenderSettings pixel_centre_settings(Compositing compositing, int samples) {
-    RenderSettings s;
-    s.width = kWidth, s.height = kHeight, s.samples = samples;
-    s.jitter = false;  // every sample through the pixel centre
-    s.compositing = compositing;
-    return s;
-}
-
-// The Gaussian layer's alpha at (x, y) of its plane, as the core clamps and cuts it (its disks end at Mahalanobis
-// radius 3, gaussian_primitives.h).
-double layer_alpha(double x, double y) {
-    double transmittance = 1.0;
-    for (double cx : {double(kCentreX), -double(kCentreX)}) {
-        const double r2 = ((x - cx) * (x - cx) + y * y) / (kSigma * kSigma);
-        double a = kOpacity * std::exp(-0.5 * r2);
-        a = a < 1.0 / 255.0 || r2 > 9.0 ? 0.0 : std::min(a, 0.99);
-        transmittance *= 1.0 - a;
-    }
-    return 1.0 - transmittance;
-}
-
 struct Checked {
     int gaussian = 0, floor = 0, world = 0;
 };
@@ -84,39 +62,37 @@ struct Checked {
 // Checks every pixel of `film` against the closed form; `mist_tolerance`: of the Mist pass (a mean over samples).
 Checked check_passes(const Film& film, double falloff, double mist_tolerance) {
     Checked n;
-    const double half_w = 0.5 * kOrthoScale, half_h = half_w * kHeight / kWidth;
-    for (int j = 0; j < kHeight; ++j)
-        for (int i = 0; i < kWidth; ++i) {
-            const std::size_t p = std::size_t(j) * kWidth + i;
-            const double x = (2.0 * (i + 0.5) / kWidth - 1.0) * half_w, y = (1.0 - 2.0 * (j + 0.5) / kHeight) * half_h;
-            const double alpha = layer_alpha(x, y);
-            const bool on_floor = x < 0.0;
-            // Orthographic: the distance along the view axis. The world contributes mist 1.
-            const double behind = on_floor ? 1.0 - mist_of(kCameraHeight, falloff) : 0.0;
-            const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, falloff)) - (1.0 - alpha) * behind;
-            EXPECT_NEAR(film[FilmChannel::Mist][p], mist, mist_tolerance) << i << ", " << j;
-            const float* position = &film[FilmChannel::Position][3 * p];
-            const float object = film[FilmChannel::ObjectIndex][p], material = film[FilmChannel::MaterialIndex][p];
-            if (alpha > 0.52) {  // the Gaussian is the surface where the opacity reaches 0.5
-                ++n.gaussian;
-                EXPECT_EQ(object, 9.0f);
-                EXPECT_EQ(material, 11.0f);
-                EXPECT_NEAR(position[0], x, 1e-4);
-                EXPECT_NEAR(position[1], y, 1e-4);
-                EXPECT_NEAR(position[2], kLayerZ, 1e-4);
-            } else if (alpha < 0.48 && on_floor) {
-                ++n.floor;
-                EXPECT_EQ(object, 3.0f);
-                EXPECT_EQ(material, 5.0f);
-                EXPECT_NEAR(position[2], 0.0, 1e-4);
-            } else if (alpha < 0.48) {
-                ++n.world;
-                EXPECT_EQ(object, 0.0f);
-                EXPECT_EQ(material, 0.0f);
-                EXPECT_EQ(position[0], 0.0f);
-                EXPECT_EQ(position[2], 0.0f);
-            }
+    for_each_pixel([&](const Pixel& px) {
+        const std::size_t p = px.index;
+        const int i = px.i, j = px.j;
+        const double x = px.x, y = px.y, alpha = px.alpha;
+        const bool on_floor = px.on_floor;
+        // Orthographic: the distance along the view axis. The world contributes mist 1.
+        const double behind = on_floor ? 1.0 - mist_of(kCameraHeight, falloff) : 0.0;
+        const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, falloff)) - (1.0 - alpha) * behind;
+        EXPECT_NEAR(film[FilmChannel::Mist][p], mist, mist_tolerance) << i << ", " << j;
+        const float* position = &film[FilmChannel::Position][3 * p];
+        const float object = film[FilmChannel::ObjectIndex][p], material = film[FilmChannel::MaterialIndex][p];
+        if (alpha > 0.52) {  // the Gaussian is the surface where the opacity reaches 0.5
+            ++n.gaussian;
+            EXPECT_EQ(object, 9.0f);
+            EXPECT_EQ(material, 11.0f);
+            EXPECT_NEAR(position[0], x, 1e-4);
+            EXPECT_NEAR(position[1], y, 1e-4);
+            EXPECT_NEAR(position[2], kLayerZ, 1e-4);
+        } else if (alpha < 0.48 && on_floor) {
+            ++n.floor;
+            EXPECT_EQ(object, 3.0f);
+            EXPECT_EQ(material, 5.0f);
+            EXPECT_NEAR(position[2], 0.0, 1e-4);
+        } else if (alpha < 0.48) {
+            ++n.world;
+            EXPECT_EQ(object, 0.0f);
+            EXPECT_EQ(material, 0.0f);
+            EXPECT_EQ(position[0], 0.0f);
+            EXPECT_EQ(position[2], 0.0f);
         }
+    });
     return n;
 }
 
@@ -143,15 +119,12 @@ TEST(RenderDataPasses, StochasticCompositingConvergesToIt) {
         EXPECT_LE(film[FilmChannel::Mist][p], 1.0f);
     }
     // Indices and positions of one sample are the accepted Gaussian's or what lies behind: only the mean is checked.
-    const double half_w = 0.5 * kOrthoScale, half_h = half_w * kHeight / kWidth;
-    for (int j = 0; j < kHeight; ++j)
-        for (int i = 0; i < kWidth; ++i) {
-            const double x = (2.0 * (i + 0.5) / kWidth - 1.0) * half_w, y = (1.0 - 2.0 * (j + 0.5) / kHeight) * half_h;
-            const double alpha = layer_alpha(x, y);
-            const double behind = x < 0.0 ? 1.0 - mist_of(kCameraHeight, 1.0) : 0.0;
-            const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, 1.0)) - (1.0 - alpha) * behind;
-            EXPECT_NEAR(film[FilmChannel::Mist][std::size_t(j) * kWidth + i], mist, 0.02) << i << ", " << j;
-        }
+    for_each_pixel([&](const Pixel& px) {
+        const double alpha = px.alpha;
+        const double behind = px.on_floor ? 1.0 - mist_of(kCameraHeight, 1.0) : 0.0;
+        const double mist = 1.0 - alpha * (1.0 - mist_of(kCameraHeight - kLayerZ, 1.0)) - (1.0 - alpha) * behind;
+        EXPECT_NEAR(film[FilmChannel::Mist][px.index], mist, 0.02) << px.i << ", " << px.j;
+    });
 }
 
 TEST(RenderDataPasses, WorldMistSettingsAreValidated) {

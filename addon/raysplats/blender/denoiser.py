@@ -77,6 +77,9 @@ def _image(values):
 def denoise(color, albedo=None, normal=None):
     """`color` (h, w, 3 or more: the first three are linear RGB, high dynamic range) denoised by OpenImageDenoise's
     ray-tracing filter, as a new (h, w, 3) float32 array. `albedo` and `normal` (h, w, 3), both or neither, guide it.
+    The guides are denoised first and then given to the colour's filter as clean (OpenImageDenoise's two-pass
+    workflow for noisy auxiliary images, Cycles' Prefilter "Accurate", its default): a guide averaged over few
+    samples carries their aliasing, which the filter would otherwise keep in the colour as texture.
     Raises RuntimeError when this Blender has no OpenImageDenoise or the denoiser reports an error."""
     lib = library()
     if lib is None:
@@ -84,22 +87,40 @@ def denoise(color, albedo=None, normal=None):
     if (albedo is None) != (normal is None):
         raise ValueError("denoise: albedo and normal guide together (the denoiser takes the normal only with the "
                          "albedo)")
-    images = {"color": _image(color)}
-    if albedo is not None:
-        images.update(albedo=_image(albedo), normal=_image(normal))
-    height, width = images["color"].shape[:2]
+    color = _image(color)
+    height, width = color.shape[:2]
     output = np.empty((height, width, 3), dtype=np.float32)
     device = lib.oidnNewDevice(_DEVICE_CPU)
     if not device:
         raise RuntimeError("OpenImageDenoise could not make a CPU device")
-    denoiser = None
     try:
         lib.oidnCommitDevice(device)
-        denoiser = lib.oidnNewFilter(device, b"RT")
+        if albedo is None:
+            _filter(lib, device, {"color": color}, output, width, height, hdr=True)
+        else:
+            # Copies: the guides are denoised in place.
+            albedo, normal = np.array(_image(albedo)), np.array(_image(normal))
+            _filter(lib, device, {"albedo": albedo}, albedo, width, height)
+            _filter(lib, device, {"normal": normal}, normal, width, height)
+            _filter(lib, device, {"color": color, "albedo": albedo, "normal": normal}, output, width, height,
+                    hdr=True, clean_aux=True)
+    finally:
+        lib.oidnReleaseDevice(device)
+    return output
+
+
+def _filter(lib, device, images, output, width, height, hdr=False, clean_aux=False):
+    """One run of the "RT" filter on `device` over `images` (name: (h, w, 3) float32) into `output`. With only an
+    albedo or a normal image it denoises that image (OpenImageDenoise's prefiltering of auxiliary images)."""
+    denoiser = lib.oidnNewFilter(device, b"RT")
+    try:
         for name, array in (*images.items(), ("output", output)):
             lib.oidnSetSharedFilterImage(denoiser, name.encode(), array.ctypes.data, _FORMAT_FLOAT3, width, height,
                                          0, 0, 0)
-        lib.oidnSetFilterBool(denoiser, b"hdr", True)
+        if hdr:
+            lib.oidnSetFilterBool(denoiser, b"hdr", True)
+        if clean_aux:
+            lib.oidnSetFilterBool(denoiser, b"cleanAux", True)
         lib.oidnCommitFilter(denoiser)
         lib.oidnExecuteFilter(denoiser)
         message = ctypes.c_char_p()
@@ -108,5 +129,3 @@ def denoise(color, albedo=None, normal=None):
     finally:
         if denoiser:
             lib.oidnReleaseFilter(denoiser)
-        lib.oidnReleaseDevice(device)
-    return output

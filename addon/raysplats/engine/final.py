@@ -75,15 +75,14 @@ def _border(scene, width, height):
 
 def _denoise(engine, film, rows, cols):
     """Denoises the Combined pass's colour in the rendered rectangle, in place (its alpha as rendered), guided by the
-    film's denoising albedo and normal where it has them. False, with a warning, where Blender has no denoiser."""
+    film's denoising albedo and normal (the render asked the core for them). False, with a warning, where Blender has
+    no denoiser."""
     if not denoiser.available():
         engine.report({"WARNING"}, "Denoise: " + denoiser.UNAVAILABLE)
         return False
     region = film["rgba"][rows, cols]
-    guides = {}
-    if "denoising_albedo" in film and "denoising_normal" in film:
-        guides = dict(albedo=film["denoising_albedo"][rows, cols], normal=film["denoising_normal"][rows, cols])
-    region[..., :3] = denoiser.denoise(region, **guides)
+    region[..., :3] = denoiser.denoise(region, albedo=film["denoising_albedo"][rows, cols],
+                                       normal=film["denoising_normal"][rows, cols])
     return True
 
 
@@ -106,7 +105,10 @@ def render_final(engine, depsgraph):
     with clock.stage("bvh"):
         render_scene.build(settings.gaussian_mode)
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
-    render_settings = sync.render_settings(scene, width, height, settings.samples, adaptive=True)
+    # The denoiser's guides are computed when the render denoises or writes them.
+    render_settings = sync.render_settings(
+        scene, width, height, settings.samples, adaptive=True,
+        denoising_data=settings.use_denoising or passes.denoising_passes_enabled(depsgraph.view_layer))
 
     # With a render border (cropped or not) Blender's render result is the border's size; Blender places it in the
     # frame itself (uncropped: the rest transparent). The core renders only the border's pixels, at their place in

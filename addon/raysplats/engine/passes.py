@@ -41,6 +41,15 @@ def enabled(view_layer, channel):
     return toggle is None or bool(getattr(*toggle, False))
 
 
+# The denoiser's guides: the core computes them only when asked (RenderSettings.denoising_data).
+DENOISING_KEYS = ("denoising_albedo", "denoising_normal")
+
+
+def denoising_passes_enabled(view_layer):
+    """Whether the view layer writes a Denoising Albedo or Normal pass."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in DENOISING_KEYS)
+
+
 def blender_name(channel):
     """The render pass's name in this Blender (5.0 renamed some)."""
     return compat.render_pass_name(channel["pass_name"])

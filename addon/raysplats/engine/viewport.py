@@ -185,7 +185,9 @@ def _start_preview(engine, state, scene, key, preview_camera, preview_width, pre
 
 
 def _start_job(engine, state, scene, camera, width, height, samples, seed_offset=0, splatting=None):
-    settings = sync.render_settings(scene, width, height, samples, seed_offset=seed_offset)
+    # The denoiser's guides only when the finished image is denoised.
+    settings = sync.render_settings(scene, width, height, samples, seed_offset=seed_offset,
+                                    denoising_data=scene.raysplats.use_preview_denoising)
     settings["compositing"] = "STOCHASTIC"  # no sorting: the cheapest sample, refined by the passes
     if splatting is not None:
         settings["camera_ray_splatting"] = splatting
@@ -198,13 +200,15 @@ def _start_job(engine, state, scene, camera, width, height, samples, seed_offset
 def _take_image(state, denoise=False):
     """The job's newest Combined film (its result once it has ended, else the newest pass's snapshot, rows top to
     bottom) and its samples; None when there is nothing newer than what is drawn. With `denoise`, a job's result
-    (all its samples) is denoised where Blender has a denoiser."""
+    (all its samples) is denoised where Blender has a denoiser, guided by its denoising albedo and normal (the job was
+    started with denoising_data when preview denoising is on)."""
     job = state.job
     if job.wait(0.0):
         state.job = None  # (before result(), which raises the render's error: reported once, not every redraw)
         film = job.result()
         if denoise and film["samples"] > 0 and denoiser.available():
-            film["rgba"][..., :3] = denoiser.denoise(film["rgba"])
+            film["rgba"][..., :3] = denoiser.denoise(film["rgba"], albedo=film["denoising_albedo"],
+                                                     normal=film["denoising_normal"])
     elif job.snapshot_samples > state.shown_samples:
         film = job.snapshot(["rgba"])  # the one channel drawn, not the whole film
     else:

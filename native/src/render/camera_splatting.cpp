@@ -89,6 +89,19 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
     // As GaussianSegmentTracer::add_mist: a stopping splat takes the transmittance left too.
     seg.mist_clearance += (stop ? t_before : t_before * alpha) *
                           mist_clearance(s_.world, ray.camera_distance + ps.depth / view_rate);
+    if (st_.denoising_data) {
+        // The denoiser's guides as GaussianSegmentTracer::add_guides, with the colour the splat shows (every splat
+        // is BAKED here).
+        const SplatSource& source = prepass_.sources()[index];
+        const GaussianSet& set = *s_.gaussians[source.set];
+        glm::vec3 albedo = color;
+        if (st_.blend_space == BlendSpace::Display)
+            for (int ch = 0; ch < 3; ++ch) albedo[ch] = srgb_to_linear(albedo[ch]);
+        const glm::vec3 n = set.flat ? set.world_normal(source.prim) : -ray.d;
+        const float weight = stop ? t_before : t_before * alpha;
+        seg.guide_albedo += weight * glm::clamp(albedo, glm::vec3(0.0f), glm::vec3(1.0f));
+        seg.guide_normal += weight * (glm::dot(n, ray.d) > 0.0f ? -n : n);
+    }
     if (opaque_here || stop) {
         // The point of the ray nearest the centre stands for the splat's place along the ray.
         const SplatSource& source = prepass_.sources()[index];

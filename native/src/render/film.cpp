@@ -75,6 +75,12 @@ void position_of(const SampleRecord& s, float* out) {
 }
 void object_index_of(const SampleRecord& s, float* out) { out[0] = s.object_index; }
 void material_index_of(const SampleRecord& s, float* out) { out[0] = s.material_index; }
+void denoising_albedo_of(const SampleRecord& s, float* out) {
+    out[0] = s.denoising_albedo[0], out[1] = s.denoising_albedo[1], out[2] = s.denoising_albedo[2];
+}
+void denoising_normal_of(const SampleRecord& s, float* out) {
+    out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
+}
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
 
@@ -106,6 +112,13 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::MaterialIndex, "material_index", "IndexMA", "X", "VALUE", SampleCombination::FirstSample, 0.0f,
      "Pass index of the material at the depth's point (Gaussians: their object's first material; first sample; "
      "0: none)", material_index_of},
+    // Cycles' names and layouts for its Denoising Data passes; averaged over the samples as Cycles averages them.
+    {FilmChannel::DenoisingAlbedo, "denoising_albedo", "Denoising Albedo", "RGB", "COLOR", SampleCombination::Mean,
+     0.0f, "Denoiser guide: the colour the camera ray sees, weighted as composited (needs denoising_data; else 0)",
+     denoising_albedo_of},
+    {FilmChannel::DenoisingNormal, "denoising_normal", "Denoising Normal", "XYZ", "VECTOR", SampleCombination::Mean,
+     0.0f, "Denoiser guide: world-space normal the camera ray sees, weighted as composited (needs denoising_data; "
+     "else 0)", denoising_normal_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample

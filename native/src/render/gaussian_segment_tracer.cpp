@@ -83,6 +83,19 @@ inline void GaussianSegmentTracer::add_mist(Segment& seg, const Ray& ray, float 
     if (ray.camera_distance >= 0.0f) seg.mist_clearance += weight * mist_clearance(s_.world, ray.camera_distance + t);
 }
 
+// A Gaussian of weight `weight` in a camera ray's pixel joins the denoiser's guides (Segment::guide_albedo): its
+// linear colour clamped to [0, 1] (a LIT one's albedo) and its normal facing the ray (as the Normal pass's).
+inline void GaussianSegmentTracer::add_guides(Segment& seg, const GaussianSet& set, std::uint32_t prim,
+                                              const Ray& ray, float weight) const {
+    if (!st_.denoising_data || ray.camera_distance < 0.0f) return;
+    const glm::vec3 albedo = shader_.shading(set.index) == GaussianShading::Lit
+                                 ? shader_.albedo(set, prim)
+                                 : glm::clamp(set.color(prim, ray.o), glm::vec3(0.0f), glm::vec3(1.0f));
+    const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
+    seg.guide_albedo += weight * albedo;
+    seg.guide_normal += weight * (glm::dot(n, ray.d) > 0.0f ? -n : n);
+}
+
 // Composites one Gaussian onto the segment (front to back).
 inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim,
                                              float t, float alpha, Sampler& rng, Counters& c) const {
@@ -96,6 +109,7 @@ inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::
     }
     seg.transmittance = t_before * (1.0f - alpha);
     add_mist(seg, ray, t, t_before * alpha);
+    add_guides(seg, set, prim, ray, t_before * alpha);
     if (t_before > 0.5f && seg.transmittance <= 0.5f) {
         seg.depth = t;
         seg.depth_set = &set;
@@ -135,6 +149,10 @@ inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, co
             seg.terminated = true;
             seg.end = h.t;
             add_mist(seg, ray, h.t, seg.transmittance);
+            if (st_.denoising_data) {
+                std::uint32_t prim_in_set = h.prim;
+                add_guides(seg, gaussian_of(h.geom, prim_in_set), prim_in_set, ray, seg.transmittance);
+            }
             return true;
         }
     }
@@ -201,6 +219,7 @@ inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L
         seg.depth = tfar;
         seg.depth_set = &set;
         add_mist(seg, ray, tfar, 1.0f);
+        add_guides(seg, set, prim, ray, 1.0f);
         const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
         seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
         ++seg.gaussians;

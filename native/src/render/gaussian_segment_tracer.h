@@ -41,6 +41,11 @@ struct Segment {
     // stands for what lies behind as it does for coverage. The mesh hit is the path integrator's to add. 0 for
     // other rays.
     float mist_clearance = 0.0f;
+    // Camera rays with RenderSettings::denoising_data: the denoiser's guides over the Gaussians (SampleRecord), sum
+    // T_i a_i x_i, a terminating Gaussian taking the transmittance left as for mist. The mesh hit is the path
+    // integrator's to add. 0 otherwise.
+    glm::vec3 guide_albedo{0.0f};
+    glm::vec3 guide_normal{0.0f};
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
     // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).
@@ -74,6 +79,7 @@ private:
     void composite(Segment& seg, const Ray& ray, std::uint32_t geom, std::uint32_t prim, float t, float alpha,
                    Sampler& rng, Counters& c) const;
     void add_mist(Segment& seg, const Ray& ray, float t, float weight) const;
+    void add_guides(Segment& seg, const GaussianSet& set, std::uint32_t prim, const Ray& ray, float weight) const;
     void init_lane(LaneState& L) const;
     static void count_traversal(LaneState& L, Counters& c);
     bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float end, float tfar, unsigned geom,

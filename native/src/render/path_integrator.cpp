@@ -76,6 +76,8 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     seg.shading.append_behind(s2.shading, s1.transmittance, rng);
     seg.transmittance = s1.transmittance * s2.transmittance;
     seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
+    seg.guide_albedo = s1.guide_albedo + s1.transmittance * s2.guide_albedo;
+    seg.guide_normal = s1.guide_normal + s1.transmittance * s2.guide_normal;
     if (s1.depth < kInf) {
         seg.depth = s1.depth;
         seg.normal = s1.normal;
@@ -122,6 +124,8 @@ struct PathIntegrator::PathState {
     // The Mist pass's sum (SampleRecord::mist) and the camera ray's transmittance in front of the current segment
     // (surfaces it passed through stochastically).
     float mist_clearance = 0.0f, camera_transmittance = 1.0f;
+    // The denoiser's guides (SampleRecord::denoising_albedo, RenderSettings::denoising_data), summed like mist.
+    glm::vec3 guide_albedo{0.0f}, guide_normal{0.0f};
     std::uint32_t camera_gaussians = 0;  // composited or accepted along the camera segment
     // depth is the camera segment's mesh hit, whose normal, object and material the surface gives (mesh_data_passes)
     bool normal_at_mesh = false;
@@ -191,6 +195,8 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
     if (p.camera_segment) {
         p.camera_gaussians += seg.gaussians;
         p.mist_clearance += p.camera_transmittance * seg.mist_clearance;
+        p.guide_albedo += p.camera_transmittance * seg.guide_albedo;
+        p.guide_normal += p.camera_transmittance * seg.guide_normal;
         if (p.depth == kInf && seg.depth < kInf) {
             p.depth = seg.depth;
             p.normal = seg.normal;
@@ -242,7 +248,14 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     if (!seg.mesh) {
         if (p.camera_segment) {
             p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
-            if (!st_.transparent_background) p.radiance += p.beta * behind_weight * world_;
+            if (!st_.transparent_background) {
+                p.radiance += p.beta * behind_weight * world_;
+                // The world's colour joins the denoising albedo of an escaping camera ray, as in Cycles
+                // (path_radiance_accum_background adds the background's value to it).
+                if (st_.denoising_data)
+                    p.guide_albedo += p.camera_transmittance * seg.transmittance *
+                                      glm::clamp(world_, glm::vec3(0.0f), glm::vec3(1.0f));
+            }
         } else {
             p.radiance += p.beta * behind_weight * world_;
         }
@@ -251,10 +264,14 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     if (gaussian_bounce && p.camera_segment) {
         p.alpha = 1.0f;  // the mesh behind covers the pixel
         add_mesh_mist(p, seg);
-        if (p.normal_at_mesh) {
+        if (st_.denoising_data || p.normal_at_mesh) {
             const Surface sf = surface(seg, p.ray);
-            p.normal = glm::dot(sf.ng, p.ray.d) < 0.0f ? sf.ng : -sf.ng;
-            mesh_data_passes(p, seg, sf);
+            const bool entering = glm::dot(sf.ng, p.ray.d) < 0.0f;
+            if (st_.denoising_data) add_mesh_guides(p, seg, sf, entering);
+            if (p.normal_at_mesh) {
+                p.normal = entering ? sf.ng : -sf.ng;
+                mesh_data_passes(p, seg, sf);
+            }
         }
     }
     return false;
@@ -265,6 +282,16 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
 void PathIntegrator::add_mesh_mist(PathState& p, const Segment& seg) const {
     p.mist_clearance += p.camera_transmittance * seg.transmittance *
                         mist_clearance(s_.world, p.ray.camera_distance + seg.t);
+}
+
+// The camera segment's mesh hit `seg` (surface `sf`) joins the denoiser's guides with the transmittance in front of
+// it: its material's base colour (the diffuse albedo; a metal's or glass's base colour too, as their tint) and its
+// shading normal facing the ray.
+void PathIntegrator::add_mesh_guides(PathState& p, const Segment& seg, const Surface& sf, bool entering) const {
+    const Material& mat = s_.materials.empty() ? default_material_ : s_.materials[sf.material];
+    const float weight = p.camera_transmittance * seg.transmittance;
+    p.guide_albedo += weight * glm::clamp(material_base_color(mat, sf.uv), glm::vec3(0.0f), glm::vec3(1.0f));
+    p.guide_normal += weight * (entering ? sf.ns : -sf.ns);
 }
 
 // The data passes of the camera segment's mesh hit `seg` (surface `sf`) at the depth: its point, its object's pass
@@ -314,6 +341,7 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
     if (p.camera_segment) {
         p.alpha = 1.0f;
         add_mesh_mist(p, seg);
+        if (st_.denoising_data) add_mesh_guides(p, seg, sf, entering);
         if (p.depth == kInf) {
             p.depth = seg.t;
             p.normal = ng;
@@ -417,6 +445,8 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.object_index = p.object_index;
     record.material_index = p.material_index;
     record.mist = 1.0f - p.mist_clearance;
+    record.denoising_albedo = {p.guide_albedo.x, p.guide_albedo.y, p.guide_albedo.z};
+    record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};
     record.gaussian_count = float(p.camera_gaussians);
     return record;
 }

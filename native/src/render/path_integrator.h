@@ -62,6 +62,7 @@ private:
     bool next_vertex(PathState& p) const;
     void add_mesh_mist(PathState& p, const Segment& seg) const;
     void mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const;
+    void add_mesh_guides(PathState& p, const Segment& seg, const Surface& sf, bool entering) const;
     SampleRecord sample_record(PathState& p) const;
 
     const Scene::Impl& s_;

@@ -145,6 +145,8 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
          {"camera_ray_splatting", T::Bool,
           "camera rays draw Gaussians as splat viewers do (EWA footprints in centre-depth order); BAKED scenes only",
           &member<&S::camera_ray_splatting>, {}},
+         {"denoising_data", T::Bool, "fill the Denoising Albedo and Denoising Normal channels (the denoiser's guides)",
+          &member<&S::denoising_data>, {}},
          {"adaptive_sampling", T::Bool, "pixels stop sampling once their noise is below the threshold (Cycles' Noise Threshold)",
           &member<&S::adaptive_sampling>, {}},
          {"adaptive_threshold", T::Real, "noise level at which a pixel stops sampling (0: automatic from samples)",

@@ -50,15 +50,26 @@ struct SampleRecord {
     // on, or the Gaussian that terminated compositing, takes all the transmittance left), d_i its distance from the
     // camera (src/render/mist.h). 1 where the ray sees only the world.
     float mist = 1.0f;
+    // The denoiser's guides (RenderSettings::denoising_data; 0 without it), as Cycles' Denoising Albedo and Normal
+    // (kernel/film/denoising_passes.h): the surface colour and the normal the camera ray sees, each weighted as the
+    // pixel weighs what the ray composited: sum_i T_i a_i x_i over the camera segment's Gaussians (a Gaussian that
+    // ends compositing takes the transmittance left, as for mist), plus T x_mesh at the mesh the ray stops on, plus
+    // T x_world where it escapes. x is the albedo: a Gaussian's linear colour (BAKED: the colour it shows; LIT: its
+    // albedo), the mesh material's base colour (metals and glass too), the world's colour (0 with a transparent
+    // background), each clamped to [0, 1]; or the world-space normal facing the camera: a flat Gaussian's plane
+    // normal, a volumetric one's -ray direction (as the Normal pass), the mesh's shading normal, 0 for the world.
+    std::array<float, 3> denoising_albedo{0.0f, 0.0f, 0.0f};
+    std::array<float, 3> denoising_normal{0.0f, 0.0f, 0.0f};
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
 };
 
 enum class FilmChannel : std::uint8_t {
-    Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex
+    Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex,
+    DenoisingAlbedo, DenoisingNormal
 };
-constexpr std::size_t kFilmChannelCount = 10;
+constexpr std::size_t kFilmChannelCount = 12;
 
 // How a channel combines the samples of a pixel.
 enum class SampleCombination : std::uint8_t {

@@ -82,6 +82,9 @@ struct RenderSettings {
     // Gaussians make the two models differ; then they go on to that mesh or the world as traced rays do. Every other
     // ray is traced. Needs every Gaussian cloud BAKED: with LIT or BAKED_SHADOWED ones, camera rays stay traced.
     bool camera_ray_splatting = false;
+    // The Denoising Albedo and Denoising Normal film channels (SampleRecord::denoising_albedo): the denoiser's
+    // guides. Off, they stay 0 and nothing is computed for them.
+    bool denoising_data = false;
 
     // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
     // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The
