@@ -314,6 +314,52 @@ class GaussiansOutOfFocus(unittest.TestCase):
         self.assertLess(psnr(images["pinhole"]), 35.0, "the blur is real")
 
 
+class _RecordingLayout:
+    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append((type(owner).__name__, name))
+
+    def column(self, *args, **kwargs):
+        return _RecordingLayout(self.log)
+
+    row = box = grid_flow = column_flow = split = column
+
+    def label(self, *args, **kwargs):
+        pass
+
+    def operator(self, *args, **kwargs):
+        return SimpleNamespace()
+
+    def prop_search(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
+
+
+class CameraPanels(unittest.TestCase):
+    def test_camera_properties_show_every_depth_of_field_setting(self):
+        # Camera Properties > Depth of Field (its header's check box and the focus) and its Aperture subpanel are
+        # Blender's own, shown for this engine; together they draw every Camera.dof setting the engine reads.
+        scene = st.reset_render_scene(32, 24, 1)
+        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        scene.collection.objects.link(camera)
+        context = SimpleNamespace(engine=scene.render.engine, camera=camera.data, scene=scene, object=camera,
+                                  space_data=None)
+        drawn = []
+        for panel in (bpy.types.DATA_PT_camera_dof, bpy.types.DATA_PT_camera_dof_aperture):
+            self.assertIn("RAYSPLATS", panel.COMPAT_ENGINES, panel.__name__)
+            stand_in = SimpleNamespace(layout=_RecordingLayout(drawn))
+            for method in ("draw_header", "draw"):
+                if hasattr(panel, method):
+                    getattr(panel, method)(stand_in, context)
+        settings = {name for owner, name in drawn if owner == "CameraDOFSettings"}
+        self.assertLessEqual({"use_dof", "focus_object", "focus_distance", "aperture_fstop", "aperture_blades",
+                              "aperture_rotation", "aperture_ratio"}, settings)
+
+
 class ViewportThroughTheCamera(unittest.TestCase):
     def context(self, scene, camera, zoom=1.0, view_perspective="CAMERA"):
         depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -14,6 +14,9 @@ _COMPATIBLE_PANELS = (
     "EEVEE_WORLD_PT_surface", "WORLD_PT_context_world", "VIEWLAYER_PT_layer_passes", "RENDER_PT_format_presets",
     # World > Mist Pass (start, depth, falloff), shown as Cycles shows its own once a view layer has the Mist pass.
     "EEVEE_WORLD_PT_mist",
+    # Camera > Depth of Field and its Aperture subpanel: every Camera.dof setting the engine reads (focus distance or
+    # object, f-stop, blades, rotation, ratio), where Cycles shows them.
+    "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture",
 )
 
 
