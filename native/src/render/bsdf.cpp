@@ -216,6 +216,7 @@ void Bsdf::setup_v2(const Material& m, const glm::vec3& wo, LobeFilter filter) {
         glossy_weight += weight;
         glossy_albedo += weight * albedo;
     }
+    spec_albedo = glossy_albedo;
     w_spec = glossy_weight > 0.0f ? 1.0f : 0.0f;
     const float p_spec = glossy_weight > 0.0f ? std::max(0.25f * glossy_weight, average(glossy_albedo)) : 0.0f;
     const float p_glass = w_glass_reflect > 0.0f || w_glass_refract > 0.0f ? w_glass : 0.0f;
@@ -253,15 +254,17 @@ glm::vec3 Bsdf::spec_fresnel(float cos_h) const {
     return cspec0 * (1.0f - fh) + glm::vec3(fh);
 }
 
-glm::vec3 Bsdf::eval(const glm::vec3& wo, const glm::vec3& wi, float& pdf) const {
+glm::vec3 Bsdf::eval(const glm::vec3& wo, const glm::vec3& wi, float& pdf, glm::vec3* f_diffuse) const {
     pdf = 0.0f;
     const float cos_i = glm::dot(n, wi), cos_o = glm::dot(n, wo);
+    if (f_diffuse) *f_diffuse = glm::vec3(0.0f);
     if (cos_i <= 0.0f || cos_o <= 0.0f) return glm::vec3(0.0f);
     glm::vec3 f(0.0f);
     if (q_diffuse > 0.0f) {
         f = w_diffuse * base * kInvPi;
         if (principled_diffuse) f *= principled_diffuse_factor(roughness, n, wo, wi);
         pdf = q_diffuse * cos_i * kInvPi;
+        if (f_diffuse) *f_diffuse = f;
     }
     if (q_spec > 0.0f && !spec_delta) {
         const glm::vec3 h = glm::normalize(wo + wi);
@@ -334,11 +337,38 @@ bool Bsdf::sample(const glm::vec3& wo, Sampler& rng, BsdfSample& out) const {
         out.wi = r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0f, 1.0f - u1)) * n;
         out.diffuse = true;
     }
-    const glm::vec3 f = eval(wo, out.wi, out.pdf);
+    const glm::vec3 f = eval(wo, out.wi, out.pdf, &out.f_diffuse);
+    out.f = f;
     if (!(out.pdf > 0.0f)) return false;
     // Non-delta lobes use the one-sample combined pdf; pdf already includes q of each non-delta lobe.
     out.weight = f * glm::dot(n, out.wi) / out.pdf;
     return true;
+}
+
+LobeColors Bsdf::colors(const glm::vec3& wo) const {
+    LobeColors c;
+    if (absorbs()) return c;
+    c.diffuse = w_diffuse * base;
+    if (w_glass_reflect > 0.0f || w_glass_refract > 0.0f) {
+        const float cos_o = std::clamp(glm::dot(n, wo), 0.0f, 1.0f);
+        const float eta = entering ? ior : 1.0f / ior;
+        float cos_t;
+        if (v2) {
+            // One glass closure whose albedo is its reflectance and transmittance (Cycles 4.x closure_albedo).
+            glm::vec3 r, t;
+            glass_fresnel(cos_o, eta, r, t, cos_t);
+            c.glossy += w_glass_reflect * r;
+            c.transmission += w_glass_refract * t;
+        } else {
+            // Cycles 3.x: a reflection closure of weight F and a refraction closure of weight base (1 - F).
+            const float f = fresnel_dielectric(cos_o, eta, cos_t);
+            c.glossy += glm::vec3(w_glass_reflect * f);
+            c.transmission += w_glass_refract * (1.0f - f) * base;
+        }
+    }
+    // Cycles 3.x: the specular layer's closure weight (its Fresnel is applied in its evaluation); 4.x: its albedo.
+    c.glossy += v2 ? spec_albedo : glm::vec3(w_spec);
+    return c;
 }
 
 }  // namespace raysplats

@@ -60,6 +60,16 @@ struct BsdfSample {
     bool delta = false;
     bool transmitted = false;
     bool diffuse = false;    // the diffuse lobe was sampled (Cycles LABEL_DIFFUSE)
+    // Non-delta samples: the diffuse lobe's part of f(wo, wi), the rest being glossy (the light passes' lobe shares,
+    // Cycles' bsdf_eval_pass_diffuse_weight).
+    glm::vec3 f_diffuse{0.0f}, f{0.0f};
+};
+
+// The albedos of a surface's lobes as Cycles writes its Diffuse, Glossy and Transmission Color passes: the closure
+// weights in Cycles 3.x (Principled v1), the closures' albedo estimates from Cycles 4.0 on (Principled v2,
+// closure_albedo).
+struct LobeColors {
+    glm::vec3 diffuse{0.0f}, glossy{0.0f}, transmission{0.0f};
 };
 
 struct Bsdf {
@@ -81,6 +91,7 @@ struct Bsdf {
     glm::vec3 layer_f0{0.0f}, layer_weight{0.0f};                  // dielectric specular layer
     float layer_eta = 1.0f;
     glm::vec3 glass_f0{0.0f}, glass_transmission_tint{0.0f};
+    glm::vec3 spec_albedo{0.0f};  // V2: the metal and specular layers' albedo estimate at the view direction
 
     // `wo` (unit, towards the viewer) matters for V2 only: its layering and energy compensation depend on the view.
     Bsdf(const Material& m, const glm::vec3& base_color, const glm::vec3& shading_normal, const glm::vec3& wo,
@@ -89,7 +100,11 @@ struct Bsdf {
     bool absorbs() const { return q_diffuse + q_spec + q_glass <= 0.0f; }
     bool has_non_delta() const { return q_diffuse > 0.0f || (q_spec > 0.0f && !spec_delta); }
     // Non-delta part: value f(wo, wi) (without the cosine) and the combined sampling pdf (solid angle).
-    glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi, float& pdf) const;
+    // `f_diffuse`, if given, receives the diffuse lobe's part of the value.
+    glm::vec3 eval(const glm::vec3& wo, const glm::vec3& wi, float& pdf, glm::vec3* f_diffuse = nullptr) const;
+    // The lobes' albedos at view direction `wo` (LobeColors). The glass' reflectance and transmittance are taken at
+    // the shading normal, as Cycles takes them for a smooth surface.
+    LobeColors colors(const glm::vec3& wo) const;
     // Samples a direction. False if the sample is absorbed.
     bool sample(const glm::vec3& wo, Sampler& rng, BsdfSample& out) const;
     // Fresnel of the specular layer at cos(wi, h) (V2: of both GGX lobes, weighted).

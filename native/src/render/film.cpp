@@ -52,13 +52,14 @@ void add_display_parts(float* sums, const SampleRecord& record) {
 // What a pixel's display parts add to its linear RGB (SampleRecord): linear(mean D + mean T display(mean(T L_behind)
 // / mean T)) in channel k. Where no sample met a Gaussian (D = 0, T = 1) that is mean L_behind, taken as it is.
 // sums[7] > 0.
-inline float display_part(const float* sums, int k) {
+// With `own` false, the Gaussians' own colours left out (D = 0): what they let through of the light behind.
+inline float display_part(const float* sums, int k, bool own = true) {
     const float n = sums[7], t = sums[3] / n;
     const bool gaussians = sums[3] != n || sums[0] != 0.0f || sums[1] != 0.0f || sums[2] != 0.0f;
-    const float behind = sums[4 + k] / n;
+    const float behind = sums[4 + k] / n, d = own ? sums[k] / n : 0.0f;
     return !gaussians  ? behind
-           : t > 0.0f ? srgb_to_linear_tabulated(sums[k] / n + t * linear_to_srgb(behind / t))
-                      : srgb_to_linear_tabulated(sums[k] / n);
+           : t > 0.0f ? srgb_to_linear_tabulated(d + t * linear_to_srgb(behind / t))
+                      : srgb_to_linear_tabulated(d);
 }
 
 void radiance_and_coverage(const SampleRecord& s, float* out) {
@@ -80,6 +81,12 @@ void denoising_albedo_of(const SampleRecord& s, float* out) {
 }
 void denoising_normal_of(const SampleRecord& s, float* out) {
     out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
+}
+
+template <LightPass pass>
+void light_of(const SampleRecord& s, float* out) {
+    const std::array<float, 3>& v = s.light[std::size_t(pass)];
+    out[0] = v[0], out[1] = v[1], out[2] = v[2];
 }
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
@@ -119,6 +126,36 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::DenoisingNormal, "denoising_normal", "Denoising Normal", "XYZ", "VECTOR", SampleCombination::Mean,
      0.0f, "Denoiser guide: world-space normal the camera ray sees, weighted as composited (needs denoising_data; "
      "else 0)", denoising_normal_of},
+    // Cycles' light passes (Blender's names before 5.0, which renamed them: the add-on maps them), each RGB averaged
+    // over the samples; Direct and Indirect divided by their Color when written (SampleRecord::light).
+    {FilmChannel::Emission, "emission", "Emit", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Light emitted towards the camera by what it sees directly: meshes, lights, Baked Gaussians (needs "
+     "light_passes; else 0)", light_of<LightPass::Emission>},
+    {FilmChannel::DiffuseDirect, "diffuse_direct", "DiffDir", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Direct light of the first surface's diffuse lobe, divided by Diffuse Color (needs light_passes; else 0)",
+     light_of<LightPass::DiffuseDirect>},
+    {FilmChannel::DiffuseIndirect, "diffuse_indirect", "DiffInd", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Indirect light of the first surface's diffuse lobe, divided by Diffuse Color (needs light_passes; else 0)",
+     light_of<LightPass::DiffuseIndirect>},
+    {FilmChannel::DiffuseColor, "diffuse_color", "DiffCol", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Diffuse albedo of the surfaces the camera sees (needs light_passes; else 0)", light_of<LightPass::DiffuseColor>},
+    {FilmChannel::GlossyDirect, "glossy_direct", "GlossDir", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Direct light of the first surface's glossy lobe, divided by Glossy Color (needs light_passes; else 0)",
+     light_of<LightPass::GlossyDirect>},
+    {FilmChannel::GlossyIndirect, "glossy_indirect", "GlossInd", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Indirect light of the first surface's glossy lobe, divided by Glossy Color (needs light_passes; else 0)",
+     light_of<LightPass::GlossyIndirect>},
+    {FilmChannel::GlossyColor, "glossy_color", "GlossCol", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Glossy albedo of the surfaces the camera sees (needs light_passes; else 0)", light_of<LightPass::GlossyColor>},
+    {FilmChannel::TransmissionDirect, "transmission_direct", "TransDir", "RGB", "COLOR", SampleCombination::Mean,
+     0.0f, "Direct light of the first surface's transmission lobe, divided by Transmission Color (needs "
+     "light_passes; else 0)", light_of<LightPass::TransmissionDirect>},
+    {FilmChannel::TransmissionIndirect, "transmission_indirect", "TransInd", "RGB", "COLOR", SampleCombination::Mean,
+     0.0f, "Indirect light of the first surface's transmission lobe, divided by Transmission Color (needs "
+     "light_passes; else 0)", light_of<LightPass::TransmissionIndirect>},
+    {FilmChannel::TransmissionColor, "transmission_color", "TransCol", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Transmission albedo of the surfaces the camera sees (needs light_passes; else 0)",
+     light_of<LightPass::TransmissionColor>},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample
@@ -126,6 +163,8 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
 constexpr bool table_is_consistent() {
     for (std::size_t i = 0; i < kChannels.size(); ++i) {
         if (std::size_t(kChannels[i].channel) != i) return false;
+        if (i >= std::size_t(FilmChannel::Emission) &&
+            i - std::size_t(FilmChannel::Emission) >= kLightPassCount) return false;
         if (kChannels[i].combination != SampleCombination::FirstSample && kChannels[i].empty_value != 0.0f) return false;
     }
     return true;
@@ -203,6 +242,11 @@ float FilmTile::noise_estimate(int x, int y) const {
 void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) {
     const std::size_t pixel = index(x, y);
     ++counts_[pixel];
+    light_passes_ = light_passes_ || record.light_passes;
+    if (record.light_passes && record.display_blend) {
+        if (front_emission_sums_.empty()) front_emission_sums_.assign(3 * counts_.size(), 0.0f);
+        for (int k = 0; k < 3; ++k) front_emission_sums_[3 * pixel + std::size_t(k)] += record.front_emission[std::size_t(k)];
+    }
     if (!odd_radiance_.empty() && (sample & 1))
         for (int c = 0; c < 3; ++c) odd_radiance_[3 * pixel + std::size_t(c)] += record.radiance[std::size_t(c)];
     float values[8];
@@ -255,10 +299,71 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
                 for (int k = 0; k < 3; ++k) out[k] += display_part(sums, k);
             }
     }
+    if (light_passes_) complete_light_passes(film);
     if (transparent_background) return;
     FloatBuffer& rgba = film.rgba();
     for (int y = y0_; y < y1_; ++y)
         for (int x = x0_; x < x1_; ++x) rgba[4 * (std::size_t(y) * film.width + x) + 3] = 1.0f;
+}
+
+namespace {
+
+// Cycles, util/color.h safe_divide_even_color: a / b per channel, and where b is 0 in a channel the mean of the
+// other channels' quotients (0 where b is 0 in all three), so a colourless light keeps its grey.
+void divide_even_color(float* a, const float* b) {
+    float q[3];
+    for (int k = 0; k < 3; ++k) q[k] = b[k] != 0.0f ? a[k] / b[k] : 0.0f;
+    const bool z0 = b[0] == 0.0f, z1 = b[1] == 0.0f, z2 = b[2] == 0.0f;
+    if (z0 && z1) q[0] = q[1] = q[2];
+    else if (z0 && z2) q[0] = q[2] = q[1];
+    else if (z1 && z2) q[1] = q[2] = q[0];
+    else if (z0) q[0] = 0.5f * (q[1] + q[2]);
+    else if (z1) q[1] = 0.5f * (q[0] + q[2]);
+    else if (z2) q[2] = 0.5f * (q[0] + q[1]);
+    a[0] = q[0], a[1] = q[1], a[2] = q[2];
+}
+
+}  // namespace
+
+void FilmTile::complete_light_passes(Film& film) const {
+    // Display blend space (SampleRecord::light): the light behind the camera ray's first run of Gaussians, scaled by
+    // s = linear(mean T display(B / mean T)) / B; the run's own part, the light Baked Gaussians show, is emission in
+    // this model.
+    if (!display_sums_.empty() && !front_emission_sums_.empty()) {
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const std::size_t pixel = index(x, y), at = 3 * (std::size_t(y) * film.width + x);
+                const float* sums = display_sums_.data() + kDisplaySums * pixel;
+                if (sums[7] == 0.0f) continue;
+                for (int k = 0; k < 3; ++k) {
+                    const float behind = sums[4 + k] / sums[7], through = display_part(sums, k, false);
+                    const float s = behind != 0.0f ? through / behind : 0.0f;
+                    for (std::size_t pass = 1; pass < kLightPassCount; ++pass)
+                        if (pass != std::size_t(LightPass::DiffuseColor) && pass != std::size_t(LightPass::GlossyColor) &&
+                            pass != std::size_t(LightPass::TransmissionColor))
+                            film[FilmChannel(std::size_t(FilmChannel::Emission) + pass)][at + std::size_t(k)] *= s;
+                    float& emission = film[FilmChannel::Emission][at + std::size_t(k)];
+                    const float front = front_emission_sums_[3 * pixel + std::size_t(k)] / float(counts_[pixel]);
+                    emission = front + s * (emission - front) + (display_part(sums, k) - through);
+                }
+            }
+    }
+    // Blender receives Cycles' Direct and Indirect passes divided by their Color (Cycles' pass accessor,
+    // film_get_pass_pixel_divide_even_color); its compositor multiplies them back.
+    constexpr FilmChannel lobes[3][3] = {
+        {FilmChannel::DiffuseDirect, FilmChannel::DiffuseIndirect, FilmChannel::DiffuseColor},
+        {FilmChannel::GlossyDirect, FilmChannel::GlossyIndirect, FilmChannel::GlossyColor},
+        {FilmChannel::TransmissionDirect, FilmChannel::TransmissionIndirect, FilmChannel::TransmissionColor}};
+    for (const auto& lobe : lobes) {
+        FloatBuffer &direct = film[lobe[0]], &indirect = film[lobe[1]];
+        const FloatBuffer& color = film[lobe[2]];
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const std::size_t at = 3 * (std::size_t(y) * film.width + x);
+                divide_even_color(direct.data() + at, color.data() + at);
+                divide_even_color(indirect.data() + at, color.data() + at);
+            }
+    }
 }
 
 void Film::write_png(const std::string& path) const {

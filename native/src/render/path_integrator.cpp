@@ -9,6 +9,28 @@
 
 namespace raysplats {
 
+namespace {
+
+// a / b per channel, 0 where b is 0 (Cycles' safe_divide): the share of a lobe in an evaluation.
+glm::vec3 share(const glm::vec3& a, const glm::vec3& b) {
+    return {b.x != 0.0f ? a.x / b.x : 0.0f, b.y != 0.0f ? a.y / b.y : 0.0f, b.z != 0.0f ? a.z / b.z : 0.0f};
+}
+
+// Adds `light` to the Direct or Indirect passes of the three lobes in the shares given (transmission: the rest, as
+// Cycles computes it).
+void add_to_lobes(std::array<glm::vec3, kLightPassCount>& passes, const glm::vec3& light, bool direct,
+                  const glm::vec3& diffuse_share, const glm::vec3& glossy_share) {
+    const std::size_t diffuse = std::size_t(direct ? LightPass::DiffuseDirect : LightPass::DiffuseIndirect);
+    const std::size_t glossy = std::size_t(direct ? LightPass::GlossyDirect : LightPass::GlossyIndirect);
+    const std::size_t transmission =
+        std::size_t(direct ? LightPass::TransmissionDirect : LightPass::TransmissionIndirect);
+    passes[diffuse] += light * diffuse_share;
+    passes[glossy] += light * glossy_share;
+    passes[transmission] += light * (glm::vec3(1.0f) - diffuse_share - glossy_share);
+}
+
+}  // namespace
+
 inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const {
     const MeshRecord& m = *s_.meshes[s_.top[seg.top_geom].index];
     const std::uint32_t* idx = m.desc.indices + 3 * std::size_t(seg.prim);
@@ -52,40 +74,6 @@ inline int PathIntegrator::nearest_light_hit(const Ray& ray, LightHit& hit) cons
     return best;
 }
 
-// The segment of `ray`, adding the emission of an area light in front of its mesh hit (lights do not
-// occlude: the ray goes on behind the light, as in Cycles). `mis_pdf` > 0: the ray was sampled from a
-// non-delta BSDF with that pdf and the light's emission is weighted against next-event estimation.
-inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf,
-                                                 const glm::vec3& beta, glm::vec3& radiance, Sampler& rng,
-                                                 Counters& c) const {
-    LightHit lh{};  // (set by nearest_light_hit; initialised for GCC's maybe-uninitialized)
-    if (s_.lights.empty() || nearest_light_hit(ray, lh) < 0) return first ? *first : tracer_.trace(ray, rng, c);
-    if (first && (first->mesh || first->terminated) && first->t < lh.t) return *first;
-    Ray near = ray;
-    near.tmax = lh.t;
-    Segment s1 = tracer_.trace(near, rng, c);
-    if (s1.mesh || s1.terminated) return s1;
-    const float w = mis_pdf > 0.0f ? power_heuristic(mis_pdf, lh.pdf) : 1.0f;
-    radiance += beta * s1.transmittance * lh.radiance * w;
-    Ray far = ray;
-    far.tmin = lh.t;
-    const Segment s2 = trace_with_lights(far, nullptr, mis_pdf, beta * s1.transmittance, radiance, rng, c);
-    Segment seg = s2;
-    seg.radiance = s1.radiance + s1.transmittance * s2.radiance;
-    seg.shading = s1.shading;
-    seg.shading.append_behind(s2.shading, s1.transmittance, rng);
-    seg.transmittance = s1.transmittance * s2.transmittance;
-    seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
-    seg.guide_albedo = s1.guide_albedo + s1.transmittance * s2.guide_albedo;
-    seg.guide_normal = s1.guide_normal + s1.transmittance * s2.guide_normal;
-    if (s1.depth < kInf) {
-        seg.depth = s1.depth;
-        seg.normal = s1.normal;
-        seg.depth_at_mesh = s1.depth_at_mesh;
-        seg.depth_set = s1.depth_set;
-    }
-    return seg;
-}
 // Display blend space (BlendSpace::Display, docs/design.md §4 and §6): a run of Gaussians along a ray (one
 // segment) is composited in display space as trained, D = sum T_i a_i c_i with display colours c_i, and meets what
 // lies behind it, the linear radiance L_behind (the mesh it ends on, shaded with its lights and bounces, or the
@@ -105,6 +93,10 @@ struct PathIntegrator::DisplayRun {
     glm::vec3 outer_beta;      // the throughput at the run, relative to the enclosing run
     glm::vec3 display;         // D
     float transmittance;       // T
+    // Light passes: the path's light before the run, as outer_radiance, and the scatterings before it (the run's
+    // own light, linear(D + T display(L_behind)) - T L_behind, is emitted light seen at that level).
+    std::array<glm::vec3, kLightPassCount> outer_light;
+    int level;
 };
 
 // One path as path() follows it: the ray it traces next, its radiance and throughput, and what the camera segment
@@ -130,6 +122,14 @@ struct PathIntegrator::PathState {
     // depth is the camera segment's mesh hit, whose normal, object and material the surface gives (mesh_data_passes)
     bool normal_at_mesh = false;
     int bounce = 0, passes = 0;
+    // Light passes (RenderSettings::light_passes; SampleRecord::light): the path's light split by pass, relative to
+    // the open display run as `radiance` is (its Color rows unused); the Color passes' sums (diffuse, glossy,
+    // transmission; absolute); the scatterings so far (0: the camera still sees what it meets); and the first
+    // scattering's shares of its diffuse and glossy lobes (the rest: transmission), per channel.
+    std::array<glm::vec3, kLightPassCount> light{};
+    glm::vec3 colors[3] = {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)};
+    int scatters = 0;
+    glm::vec3 diffuse_share{0.0f}, glossy_share{0.0f};
     bool after_diffuse = false;  // Cycles PATH_RAY_DIFFUSE: the last bounce was diffuse
     bool last = false;           // the ray leaving the last vertex: emission only
     float mis_pdf = 0.0f;        // pdf of the BSDF sample that made `ray` (0: camera or delta)
@@ -148,6 +148,42 @@ struct PathIntegrator::GaussianBounce {
     float pdf = 0.0f;
     glm::vec3 beta{0.0f};
 };
+
+// The segment of `ray`, adding the emission of an area light in front of its mesh hit (lights do not
+// occlude: the ray goes on behind the light, as in Cycles). `mis_pdf` > 0: the ray was sampled from a
+// non-delta BSDF with that pdf and the light's emission is weighted against next-event estimation.
+inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf,
+                                                 const glm::vec3& beta, PathState& p, Sampler& rng,
+                                                 Counters& c) const {
+    LightHit lh{};  // (set by nearest_light_hit; initialised for GCC's maybe-uninitialized)
+    if (s_.lights.empty() || nearest_light_hit(ray, lh) < 0) return first ? *first : tracer_.trace(ray, rng, c);
+    if (first && (first->mesh || first->terminated) && first->t < lh.t) return *first;
+    Ray near = ray;
+    near.tmax = lh.t;
+    Segment s1 = tracer_.trace(near, rng, c);
+    if (s1.mesh || s1.terminated) return s1;
+    const float w = mis_pdf > 0.0f ? power_heuristic(mis_pdf, lh.pdf) : 1.0f;
+    p.radiance += beta * s1.transmittance * lh.radiance * w;
+    if (st_.light_passes) add_emitted(p, beta * s1.transmittance * lh.radiance * w, p.scatters);
+    Ray far = ray;
+    far.tmin = lh.t;
+    const Segment s2 = trace_with_lights(far, nullptr, mis_pdf, beta * s1.transmittance, p, rng, c);
+    Segment seg = s2;
+    seg.radiance = s1.radiance + s1.transmittance * s2.radiance;
+    seg.shading = s1.shading;
+    seg.shading.append_behind(s2.shading, s1.transmittance, rng);
+    seg.transmittance = s1.transmittance * s2.transmittance;
+    seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
+    seg.guide_albedo = s1.guide_albedo + s1.transmittance * s2.guide_albedo;
+    seg.guide_normal = s1.guide_normal + s1.transmittance * s2.guide_normal;
+    if (s1.depth < kInf) {
+        seg.depth = s1.depth;
+        seg.normal = s1.normal;
+        seg.depth_at_mesh = s1.depth_at_mesh;
+        seg.depth_set = s1.depth_set;
+    }
+    return seg;
+}
 
 // After a bounce: the next ray is the last one (emission only) past max_bounces; false when Russian roulette
 // ends the path.
@@ -182,14 +218,17 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
     if (display_run) {
         // Splat radiance is baked reflected light: seen from the last vertex it would be one bounce too many
         // (the ray still takes their transmittance).
-        p.runs.push_back({p.radiance, p.beta, p.last ? glm::vec3(0.0f) : seg.radiance, seg.transmittance});
+        p.runs.push_back({p.radiance, p.beta, p.last ? glm::vec3(0.0f) : seg.radiance, seg.transmittance, p.light,
+                          p.scatters});
         p.camera_run = p.camera_run || p.first_trace;
         p.radiance = glm::vec3(0.0f);
+        if (st_.light_passes) p.light = {};
         p.beta_outer *= p.beta;
         p.beta = glm::vec3(1.0f);
         behind_weight = 1.0f;
     } else if (!p.last) {
         p.radiance += p.beta * seg.radiance;
+        if (st_.light_passes) add_emitted(p, p.beta * seg.radiance, p.scatters);
     }
     p.first_trace = false;
     if (p.camera_segment) {
@@ -224,7 +263,14 @@ PathIntegrator::GaussianBounce PathIntegrator::shade_gaussians(PathState& p, con
         const float a = std::max(sp.albedo_sum.x, std::max(sp.albedo_sum.y, sp.albedo_sum.z));
         p_bounce = seg.mesh && !seg.terminated ? a / (a + seg.transmittance) : 1.0f;
     }
-    p.radiance += p.beta * tracer_.shader().direct(sp, p_bounce, p.rng, c);
+    const glm::vec3 shaded = tracer_.shader().direct(sp, p_bounce, p.rng, c);
+    p.radiance += p.beta * shaded;
+    if (st_.light_passes) {
+        // Both kinds are diffuse-like: a LIT Gaussian is Lambertian (albedo its delit colour), a BAKED_SHADOWED one
+        // shows its colour times the lights' visibility (Diffuse Direct is then that visibility).
+        if (p.scatters == 0) add_colors(p, sp.albedo_sum + sp.shadowed_sum, glm::vec3(0.0f), glm::vec3(0.0f));
+        add_scattered(p, p.beta * shaded, glm::vec3(1.0f), glm::vec3(0.0f));
+    }
     if (p_bounce > 0.0f) {
         if (p_bounce >= 1.0f || p.rng.next() < p_bounce) {
             bounce.taken = true;
@@ -258,6 +304,7 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
             }
         } else {
             p.radiance += p.beta * behind_weight * world_;
+            if (st_.light_passes) add_emitted(p, p.beta * behind_weight * world_, p.scatters, true);
         }
         return !gaussian_bounce;
     }
@@ -308,6 +355,7 @@ bool PathIntegrator::bounce_off_gaussians(PathState& p, const GaussianBounce& bo
     p.camera_segment = false;
     p.beta = bounce.beta;
     p.after_diffuse = true;
+    if (p.scatters++ == 0) p.diffuse_share = glm::vec3(1.0f), p.glossy_share = glm::vec3(0.0f);
     p.mis_pdf = bounce.pdf;
     if (!next_vertex(p)) return false;
     p.ray = bounce.ray;
@@ -358,6 +406,9 @@ bool PathIntegrator::shade_hit(PathState& p, const Surface& sf, const Material& 
                                const glm::vec3& ng, float eps, Counters& c) const {
     p.radiance += p.beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
                   mat.emission_strength;
+    if (st_.light_passes)
+        add_emitted(p, p.beta * glm::vec3(mat.emission_color[0], mat.emission_color[1], mat.emission_color[2]) *
+                           mat.emission_strength, p.scatters);
     if (p.last) return false;
     glm::vec3 ns = entering ? sf.ns : -sf.ns;
     const glm::vec3 wo = -p.ray.d;
@@ -368,6 +419,10 @@ bool PathIntegrator::shade_hit(PathState& p, const Surface& sf, const Material& 
         filter.refractive = st_.caustics_refractive;
     }
     const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, wo, entering, filter);
+    if (st_.light_passes && p.scatters == 0) {
+        const LobeColors lobes = bsdf.colors(wo);
+        add_colors(p, lobes.diffuse, lobes.glossy, lobes.transmission);
+    }
     if (bsdf.absorbs()) return false;
     if (bsdf.has_non_delta()) add_direct_lighting(p, bsdf, sf.p + ng * eps, ng, ns, wo, c);
     return next_bounce(p, bsdf, sf.p, ng, wo, eps);
@@ -382,13 +437,16 @@ void PathIntegrator::add_direct_lighting(PathState& p, const Bsdf& bsdf, const g
         if (!sample_light(l, p_out, p.rng, ls)) continue;
         if (glm::dot(ls.wi, ng) <= 0.0f) continue;
         float pdf;
-        const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf);
+        glm::vec3 f_diffuse;
+        const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf, st_.light_passes ? &f_diffuse : nullptr);
         const float cos_i = glm::dot(ns, ls.wi);
         if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
         const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
         // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
         const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
         if (vis > 0.0f) p.radiance += p.beta * f * cos_i * ls.value * (vis * w);
+        if (vis > 0.0f && st_.light_passes)
+            add_scattered(p, p.beta * f * cos_i * ls.value * (vis * w), share(f_diffuse, f), share(f - f_diffuse, f));
     }
 }
 
@@ -402,6 +460,12 @@ bool PathIntegrator::next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3
     if (!(p.beta.x > 0.0f || p.beta.y > 0.0f || p.beta.z > 0.0f)) return false;
     p.after_diffuse = bs.diffuse;
     p.mis_pdf = bs.delta ? 0.0f : bs.pdf;
+    if (p.scatters++ == 0) {
+        // The lobes that carry the path on (Cycles' pass weights at bounce 0): a delta sample is the glass' refraction
+        // (transmission) or a mirror-like reflection (glossy); a non-delta one splits as its evaluation does.
+        p.diffuse_share = bs.delta ? glm::vec3(0.0f) : share(bs.f_diffuse, bs.f);
+        p.glossy_share = bs.delta ? glm::vec3(bs.transmitted ? 0.0f : 1.0f) : share(bs.f - bs.f_diffuse, bs.f);
+    }
     if (!next_vertex(p)) return false;
     const bool below = glm::dot(bs.wi, ng) < 0.0f;
     p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
@@ -418,6 +482,7 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
         glm::vec3 l;
         for (int ch = 0; ch < 3; ++ch)
             l[ch] = srgb_to_linear_tabulated(r.display[ch] + r.transmittance * linear_to_srgb(p.radiance[ch]));
+        if (st_.light_passes) close_run_light(p, r, l);
         p.radiance = r.outer_radiance + r.outer_beta * l;
         p.runs.pop_back();
     }
@@ -436,6 +501,20 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
         record.display_transmittance = t;
         record.behind_radiance = {behind.x, behind.y, behind.z};
         record.display_blend = true;
+        if (st_.light_passes && p.camera_run) {
+            // The passes behind the camera run, as `behind`; what lies in front of it is emission (area lights).
+            const std::array<glm::vec3, kLightPassCount>& front_light = p.runs[0].outer_light;
+            for (std::size_t k = 0; k < kLightPassCount; ++k) p.light[k] = front_light[k] + t * p.light[k];
+            const glm::vec3& e = front_light[std::size_t(LightPass::Emission)];
+            record.front_emission = {e.x, e.y, e.z};
+        }
+    }
+    if (st_.light_passes) {
+        record.light_passes = true;
+        p.light[std::size_t(LightPass::DiffuseColor)] = p.colors[0];
+        p.light[std::size_t(LightPass::GlossyColor)] = p.colors[1];
+        p.light[std::size_t(LightPass::TransmissionColor)] = p.colors[2];
+        for (std::size_t k = 0; k < kLightPassCount; ++k) record.light[k] = {p.light[k].x, p.light[k].y, p.light[k].z};
     }
     record.radiance = {p.radiance.x, p.radiance.y, p.radiance.z};
     record.alpha = p.alpha;
@@ -451,6 +530,55 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     return record;
 }
 
+
+// Light emitted towards a path vertex after `level` scatterings (a mesh's emission, an area light, the world, BAKED
+// Gaussians' radiance; Cycles, kernel/film/light_passes.h, film_write_emission_or_background_pass): seen before any
+// scattering it is Emission (the world: Cycles' Environment, none of these passes); one scattering later Direct,
+// later Indirect, each in the first scattering's lobe shares.
+void PathIntegrator::add_emitted(PathState& p, const glm::vec3& light, int level, bool world) const {
+    if (level == 0) {
+        if (!world) p.light[std::size_t(LightPass::Emission)] += light;
+        return;
+    }
+    add_to_lobes(p.light, light, level == 1, p.diffuse_share, p.glossy_share);
+}
+
+// Light scattered towards the camera at the path's current vertex by next-event estimation or the shading of LIT and
+// BAKED_SHADOWED Gaussians (Cycles' film_write_direct_light): at the first scattering surface Direct light in the
+// shares of that evaluation's lobes, later Indirect in the first scattering's shares.
+void PathIntegrator::add_scattered(PathState& p, const glm::vec3& light, const glm::vec3& diffuse_share,
+                                   const glm::vec3& glossy_share) const {
+    if (p.scatters == 0)
+        add_to_lobes(p.light, light, true, diffuse_share, glossy_share);
+    else
+        add_to_lobes(p.light, light, false, p.diffuse_share, p.glossy_share);
+}
+
+// The lobes' albedos of a surface the camera sees (before the first scattering), weighted by the throughput to it
+// (Cycles' film_write_data_passes): in display blend space the open runs' transmittances included, linearly.
+void PathIntegrator::add_colors(PathState& p, const glm::vec3& diffuse, const glm::vec3& glossy,
+                                const glm::vec3& transmission) const {
+    glm::vec3 throughput = p.beta * p.beta_outer;
+    for (const DisplayRun& r : p.runs) throughput *= r.transmittance;
+    p.colors[0] += throughput * diffuse;
+    p.colors[1] += throughput * glossy;
+    p.colors[2] += throughput * transmission;
+}
+
+// A display run closes (sample_record): L = linear(D + T display(L_behind)). The light behind keeps its passes,
+// attenuated as the display blend attenuates it, linear(T display(L_behind)) = T_eff L_behind (per channel, T_eff <=
+// T); the rest, L - T_eff L_behind >= 0, is the run's Gaussians' own light, emitted light seen at the run's level.
+void PathIntegrator::close_run_light(PathState& p, const DisplayRun& r, const glm::vec3& l) const {
+    glm::vec3 through(0.0f), attenuation(0.0f);
+    for (int ch = 0; ch < 3; ++ch) {
+        through[ch] = srgb_to_linear_tabulated(r.transmittance * linear_to_srgb(p.radiance[ch]));
+        attenuation[ch] = p.radiance[ch] > 0.0f ? through[ch] / p.radiance[ch] : r.transmittance;
+    }
+    for (std::size_t k = 0; k < kLightPassCount; ++k)
+        p.light[k] = r.outer_light[k] + r.outer_beta * attenuation * p.light[k];
+    add_emitted(p, r.outer_beta * (l - through), r.level);
+}
+
 // Bounces follow Cycles: NEE at the camera hit and after each of max_bounces bounces, and the ray leaving the
 // last vertex still collects the emitters it sees (world, area lights, mesh emission) without further shading
 // (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
@@ -459,7 +587,7 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
     runs.clear();
     PathState p(ray, rng, runs, st_.blend_space == BlendSpace::Display);
     for (;;) {
-        Segment seg = trace_with_lights(p.ray, first, p.mis_pdf, p.beta, p.radiance, rng, c);
+        Segment seg = trace_with_lights(p.ray, first, p.mis_pdf, p.beta, p, rng, c);
         first = nullptr;
         const float behind_weight = add_gaussians(p, seg);
         const GaussianBounce gaussian_bounce = shade_gaussians(p, seg, c);

@@ -45,7 +45,7 @@ private:
     Surface surface(const Segment& seg, const Ray& ray) const;
     int nearest_light_hit(const Ray& ray, LightHit& hit) const;
     Segment trace_with_lights(const Ray& ray, const Segment* first, float mis_pdf, const glm::vec3& beta,
-                              glm::vec3& radiance, Sampler& rng, Counters& c) const;
+                              PathState& p, Sampler& rng, Counters& c) const;
     // The camera segment and every later one: the Gaussians up to a mesh hit, their shading, and how it ends.
     float add_gaussians(PathState& p, Segment& seg) const;
     GaussianBounce shade_gaussians(PathState& p, const Segment& seg, Counters& c) const;
@@ -64,6 +64,13 @@ private:
     void mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const;
     void add_mesh_guides(PathState& p, const Segment& seg, const Surface& sf, bool entering) const;
     SampleRecord sample_record(PathState& p) const;
+    // The light passes (RenderSettings::light_passes, SampleRecord::light).
+    void add_emitted(PathState& p, const glm::vec3& light, int level, bool world = false) const;
+    void add_scattered(PathState& p, const glm::vec3& light, const glm::vec3& diffuse_share,
+                       const glm::vec3& glossy_share) const;
+    void add_colors(PathState& p, const glm::vec3& diffuse, const glm::vec3& glossy,
+                    const glm::vec3& transmission) const;
+    void close_run_light(PathState& p, const DisplayRun& r, const glm::vec3& l) const;
 
     const Scene::Impl& s_;
     const RenderSettings& st_;

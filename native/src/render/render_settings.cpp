@@ -147,6 +147,8 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
           &member<&S::camera_ray_splatting>, {}},
          {"denoising_data", T::Bool, "fill the Denoising Albedo and Denoising Normal channels (the denoiser's guides)",
           &member<&S::denoising_data>, {}},
+         {"light_passes", T::Bool, "fill the light passes' channels (Emission; Diffuse, Glossy and Transmission Direct, "
+          "Indirect and Color)", &member<&S::light_passes>, {}},
          {"adaptive_sampling", T::Bool, "pixels stop sampling once their noise is below the threshold (Cycles' Noise Threshold)",
           &member<&S::adaptive_sampling>, {}},
          {"adaptive_threshold", T::Real, "noise level at which a pixel stops sampling (0: automatic from samples)",

@@ -19,6 +19,13 @@ namespace raysplats {
 // no serial zeroing and page faults before the first ray.
 using FloatBuffer = std::vector<float, DefaultInitAllocator<float>>;
 
+// SampleRecord::light's rows, in the order of their film channels (FilmChannel::Emission onwards).
+enum class LightPass : std::uint8_t {
+    Emission, DiffuseDirect, DiffuseIndirect, DiffuseColor, GlossyDirect, GlossyIndirect, GlossyColor,
+    TransmissionDirect, TransmissionIndirect, TransmissionColor
+};
+constexpr std::size_t kLightPassCount = 10;
+
 // What one camera sample contributes to its pixel. Produced by the path integrator for every sample.
 struct SampleRecord {
     std::array<float, 3> radiance{0.0f, 0.0f, 0.0f};  // linear
@@ -60,6 +67,28 @@ struct SampleRecord {
     // normal, a volumetric one's -ray direction (as the Normal pass), the mesh's shading normal, 0 for the world.
     std::array<float, 3> denoising_albedo{0.0f, 0.0f, 0.0f};
     std::array<float, 3> denoising_normal{0.0f, 0.0f, 0.0f};
+    // The light passes (RenderSettings::light_passes; all 0 and `light_passes` false without it), Cycles' split of
+    // the radiance (kernel/film/light_passes.h), linear, premultiplied like `radiance`, indexed by LightPass:
+    // Emission: light emitted towards the camera by what it sees before the path's first scattering (mesh emission,
+    // area lights, BAKED Gaussians' radiance), times the transmittance in front of it. In display blend space the
+    // camera ray's first run of Gaussians adds its own part at the film, and what lies behind it is attenuated as the
+    // display blend attenuates it: with the pixel's means, the light behind, B = mean(T L_behind), is seen as
+    // linear(mean T display(B / mean T)) = s B (s <= 1 per channel), so every pass behind is scaled by s and Emission
+    // gains linear(mean D + mean T display(B / mean T)) - s B >= 0 (FilmTile::write_to).
+    // Direct: next-event estimation at the first scattering surface (a mesh, or LIT and BAKED_SHADOWED Gaussians),
+    // and what is emitted towards it (meshes, lights, the world, BAKED Gaussians) one bounce later; Indirect: every
+    // later contribution. Each goes to the diffuse, glossy or transmission lobe of that first surface, in the shares
+    // of the BSDF evaluation that carried it (Cycles' pass_diffuse_weight and pass_glossy_weight).
+    // Color: the lobes' albedos at every surface met before the first scattering, times the throughput there
+    // (Cycles' film_write_data_passes). The film divides Direct and Indirect by Color (Cycles'
+    // safe_divide_even_color), as Blender receives them from Cycles, so that
+    //     sum over lobes of (Direct + Indirect) Color + Emission + (the world seen directly) = Combined.
+    // The world seen before the first scattering is in none of them (Cycles' Environment pass).
+    bool light_passes = false;
+    std::array<std::array<float, 3>, kLightPassCount> light{};
+    // Display blend space: the part of light[Emission] in front of the camera ray's first run (area lights seen
+    // there); the film attenuates the rest as the display blend attenuates what lies behind the run.
+    std::array<float, 3> front_emission{0.0f, 0.0f, 0.0f};
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
@@ -67,9 +96,12 @@ struct SampleRecord {
 
 enum class FilmChannel : std::uint8_t {
     Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex,
-    DenoisingAlbedo, DenoisingNormal
+    DenoisingAlbedo, DenoisingNormal,
+    Emission, DiffuseDirect, DiffuseIndirect, DiffuseColor, GlossyDirect, GlossyIndirect, GlossyColor,
+    TransmissionDirect, TransmissionIndirect, TransmissionColor
 };
-constexpr std::size_t kFilmChannelCount = 12;
+constexpr std::size_t kFilmChannelCount = 22;
+
 
 // How a channel combines the samples of a pixel.
 enum class SampleCombination : std::uint8_t {
@@ -203,7 +235,8 @@ public:
     float noise_estimate(int x, int y) const;
     // Writes the tile's pixels into `film`, each as the mean of its own samples (a pixel without any: the empty
     // values). Combined's alpha is coverage with a transparent background (RenderSettings::transparent_background)
-    // and 1 otherwise.
+    // and 1 otherwise. With light passes, Emission gets the display blend's own part and the Direct and Indirect
+    // passes are divided by their Color (SampleRecord::light).
     void write_to(Film& film, bool transparent_background) const;
     // Pixels [x0, x1) x [y0, y1) of the film.
     int x0() const { return x0_; }
@@ -212,6 +245,7 @@ public:
     int y1() const { return y1_; }
 
 private:
+    void complete_light_passes(Film& film) const;
     std::size_t index(int x, int y) const { return std::size_t(y - y0_) * std::size_t(x1_ - x0_) + std::size_t(x - x0_); }
     int x0_, y0_, x1_, y1_;
     std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean, Sum) or first samples (FirstSample)
@@ -222,6 +256,10 @@ private:
     // (noise_estimates only), so that noise_estimate() compares pixel values combined as write_to() combines them.
     std::vector<float> display_sums_;
     std::vector<float> odd_display_sums_;
+    // A sample carried the light passes (SampleRecord::light_passes): write_to() completes them. In display blend
+    // space, per pixel the sums of SampleRecord::front_emission (3; empty until a sample has them).
+    bool light_passes_ = false;
+    std::vector<float> front_emission_sums_;
 };
 
 }  // namespace raysplats

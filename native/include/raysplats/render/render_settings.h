@@ -85,6 +85,10 @@ struct RenderSettings {
     // The Denoising Albedo and Denoising Normal film channels (SampleRecord::denoising_albedo): the denoiser's
     // guides. Off, they stay 0 and nothing is computed for them.
     bool denoising_data = false;
+    // The light passes' film channels (SampleRecord::light: Emission, and Diffuse, Glossy and Transmission Direct,
+    // Indirect and Color). Off, they stay 0 and nothing is computed for them; on or off, the other channels are the
+    // same.
+    bool light_passes = false;
 
     // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
     // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The
