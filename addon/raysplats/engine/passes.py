@@ -10,7 +10,12 @@ from ..blender import compat
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
                     "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
-                    "IndexMA": "use_pass_material_index"}
+                    "IndexMA": "use_pass_material_index", "Emit": "use_pass_emit",
+                    "DiffDir": "use_pass_diffuse_direct", "DiffInd": "use_pass_diffuse_indirect",
+                    "DiffCol": "use_pass_diffuse_color", "GlossDir": "use_pass_glossy_direct",
+                    "GlossInd": "use_pass_glossy_indirect", "GlossCol": "use_pass_glossy_color",
+                    "TransDir": "use_pass_transmission_direct", "TransInd": "use_pass_transmission_indirect",
+                    "TransCol": "use_pass_transmission_color"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -50,6 +55,23 @@ def denoising_passes_enabled(view_layer):
     return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in DENOISING_KEYS)
 
 
+# The light passes, laid out as Cycles' View Layer > Passes > Light panel lays them out: (heading, [(key, label)]).
+# The core splits the light only when one of them is written (RenderSettings.light_passes).
+LIGHT_PASS_LAYOUT = (
+    ("Diffuse", (("diffuse_direct", "Direct"), ("diffuse_indirect", "Indirect"), ("diffuse_color", "Color"))),
+    ("Glossy", (("glossy_direct", "Direct"), ("glossy_indirect", "Indirect"), ("glossy_color", "Color"))),
+    ("Transmission", (("transmission_direct", "Direct"), ("transmission_indirect", "Indirect"),
+                      ("transmission_color", "Color"))),
+    ("Other", (("emission", "Emission"),)),
+)
+LIGHT_KEYS = frozenset(key for _, rows in LIGHT_PASS_LAYOUT for key, _ in rows)
+
+
+def light_passes_enabled(view_layer):
+    """Whether the view layer writes a light pass (Emission, or a Diffuse, Glossy or Transmission one)."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in LIGHT_KEYS)
+
+
 def blender_name(channel):
     """The render pass's name in this Blender (5.0 renamed some)."""
     return compat.render_pass_name(channel["pass_name"])
@@ -80,8 +102,11 @@ def write_passes(render_layer, film, rows, cols):
 
 
 def draw_pass_toggles(layout, view_layer):
+    """The check boxes of every pass but the light passes (draw_light_pass_toggles)."""
     column = layout.column(heading="Include", align=True)
     for channel in channels():
+        if channel["key"] in LIGHT_KEYS:
+            continue
         toggle = _toggle(view_layer, channel)
         if toggle is None:
             row = column.row()
@@ -89,6 +114,16 @@ def draw_pass_toggles(layout, view_layer):
             row.label(text=blender_name(channel), icon="CHECKBOX_HLT")
         else:
             column.prop(*toggle, text=blender_name(channel))
+
+
+def draw_light_pass_toggles(layout, view_layer):
+    """Blender's own check boxes of the light passes, in LIGHT_PASS_LAYOUT (none without the native module)."""
+    by_key = {channel["key"]: channel for channel in channels()}
+    for heading, rows in LIGHT_PASS_LAYOUT:
+        column = layout.column(heading=heading, align=True)
+        for key, label in rows:
+            if key in by_key:
+                column.prop(*_toggle(view_layer, by_key[key]), text=label)
 
 
 def _pass_properties_class():

@@ -230,11 +230,25 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
         passes.draw_pass_toggles(self.layout, context.view_layer)
 
 
+class RAYSPLATS_VIEWLAYER_PT_passes_light(RaySplatsPanel, bpy.types.Panel):
+    """View Layer > Passes > Light: Blender's own light pass check boxes, as Cycles draws them (Cycles' own panel
+    also draws Volume, Environment, Ambient Occlusion and Shadow Catcher check boxes, passes this engine does not
+    write, so it is not declared compatible)."""
+    bl_label = "Light"
+    bl_context = "view_layer"
+    bl_parent_id = "VIEWLAYER_PT_layer_passes"
+
+    def draw(self, context):
+        self.layout.use_property_split = True
+        self.layout.use_property_decorate = False
+        passes.draw_light_pass_toggles(self.layout, context.view_layer)
+
+
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
             RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
             RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
             RAYSPLATS_RENDER_PT_other,
-            RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)
+            RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes, RAYSPLATS_VIEWLAYER_PT_passes_light)
 
 
 def register():
