@@ -49,6 +49,72 @@ def use_cycles_on_cpu(scene, samples, pixel_filter=("BOX", 1.0), seed=1):
     return cycles
 
 
+def cycles_paths_as_compared(cycles, bounces=4):
+    """Cycles' light paths as the agreement tests compare them with RaySplats': `bounces` of every kind, no clamping,
+    caustics off (RaySplats follows Cycles' caustics tricks, off in its settings too), no glossy blur, every light
+    sampled."""
+    cycles.max_bounces = cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = bounces
+    cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
+    cycles.caustics_reflective = cycles.caustics_refractive = False
+    cycles.blur_glossy = 0.0
+    cycles.light_sampling_threshold = 0.0
+
+
+def raysplats_paths_as_compared(scene, bounces=4):
+    """RaySplats' settings as the agreement tests compare them with Cycles' (cycles_paths_as_compared): every pixel at
+    the full sample count, `bounces` bounces, seed 1, caustics off."""
+    settings = scene.raysplats
+    settings.use_adaptive_sampling = False
+    settings.max_bounces = bounces
+    settings.seed = 1
+    settings.caustics_reflective = settings.caustics_refractive = False
+
+
+def add_camera_looking_at(scene, location, target):
+    """A new perspective camera at `location` looking at `target` (+Y up in its image), the scene's camera."""
+    import mathutils
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = location
+    camera.rotation_euler = (mathutils.Vector(target) - camera.location).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = camera
+    return camera
+
+
+def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.45, distribution="GGX"):
+    """A new material whose Principled BSDF has these inputs."""
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    node = material.node_tree.nodes["Principled BSDF"]
+    node.distribution = distribution
+    node.inputs["Base Color"].default_value = (*color, 1.0)
+    node.inputs["Metallic"].default_value = metallic
+    node.inputs["Roughness"].default_value = roughness
+    node.inputs["IOR"].default_value = ior
+    (node.inputs.get("Transmission Weight") or node.inputs.get("Transmission")).default_value = transmission
+    return material
+
+
+def add_with_material(primitive, material, **kwargs):
+    """A new object made by the bpy.ops.mesh primitive operator with `kwargs`, its mesh given `material`."""
+    primitive(**kwargs)
+    obj = bpy.context.object
+    obj.data.materials.append(material)
+    return obj
+
+
+def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
+    """Flat Gaussians (z extent 1e-4) of one size, opacity and display colour, as the core's cloud dict."""
+    count = len(centres)
+    sh = np.zeros((count, 1, 3), dtype=np.float32)
+    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
+    return {"positions": np.asarray(centres, dtype=np.float32),
+            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
+            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
+            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
+
+
 def native():
     from raysplats import native as native_module
     return native_module.core()

@@ -15,7 +15,6 @@ import math
 import unittest
 
 import bpy
-import mathutils
 import numpy as np
 
 import splat_testing as st
@@ -29,31 +28,11 @@ BLOCKS = 4  # the image is split into BLOCKS x BLOCKS regions for the systematic
 DISTRIBUTIONS = ("GGX",) if compat.PRINCIPLED_VERSION == "V1" else ("GGX", "MULTI_GGX")
 
 
-def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.45, distribution="GGX"):
-    material = bpy.data.materials.new(name)
-    material.use_nodes = True
-    node = material.node_tree.nodes["Principled BSDF"]
-    node.distribution = distribution
-    node.inputs["Base Color"].default_value = (*color, 1.0)
-    node.inputs["Metallic"].default_value = metallic
-    node.inputs["Roughness"].default_value = roughness
-    node.inputs["IOR"].default_value = ior
-    (node.inputs.get("Transmission Weight") or node.inputs.get("Transmission")).default_value = transmission
-    return material
-
-
-def add(primitive, material, **kwargs):
-    primitive(**kwargs)
-    obj = bpy.context.object
-    obj.data.materials.append(material)
-    return obj
-
-
 def build_scene(distribution="GGX"):
     st.reset_scene()
 
     def material(*args, **kwargs):
-        return principled(*args, distribution=distribution, **kwargs)
+        return st.principled(*args, distribution=distribution, **kwargs)
 
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = WIDTH, HEIGHT, 100
@@ -62,13 +41,14 @@ def build_scene(distribution="GGX"):
     world.use_nodes = False
     st.set_world_color(world, (0.08, 0.09, 0.1))
     scene.world = world
-    add(bpy.ops.mesh.primitive_plane_add, material("Floor", (0.8, 0.8, 0.8)), size=8.0)
-    add(bpy.ops.mesh.primitive_cube_add, material("Red", (0.8, 0.1, 0.1)), size=0.8, location=(-1.2, 0.5, 0.4))
-    add(bpy.ops.mesh.primitive_uv_sphere_add, material("Gold", (0.9, 0.7, 0.3), metallic=1.0, roughness=0.3),
+    add, mesh = st.add_with_material, bpy.ops.mesh
+    add(mesh.primitive_plane_add, material("Floor", (0.8, 0.8, 0.8)), size=8.0)
+    add(mesh.primitive_cube_add, material("Red", (0.8, 0.1, 0.1)), size=0.8, location=(-1.2, 0.5, 0.4))
+    add(mesh.primitive_uv_sphere_add, material("Gold", (0.9, 0.7, 0.3), metallic=1.0, roughness=0.3),
         radius=0.5, location=(0.0, 0.8, 0.5))
-    add(bpy.ops.mesh.primitive_uv_sphere_add, material("Glass", (1.0, 1.0, 1.0), roughness=0.0, transmission=1.0),
+    add(mesh.primitive_uv_sphere_add, material("Glass", (1.0, 1.0, 1.0), roughness=0.0, transmission=1.0),
         radius=0.4, location=(1.1, 0.2, 0.4))
-    add(bpy.ops.mesh.primitive_plane_add, material("Mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0),
+    add(mesh.primitive_plane_add, material("Mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0),
         size=2.0, location=(0.0, 2.2, 1.0), rotation=(math.pi / 2, 0.0, 0.0))
 
     bpy.ops.object.light_add(type="SUN", rotation=(0.6, 0.3, 0.4))
@@ -81,11 +61,7 @@ def build_scene(distribution="GGX"):
     bpy.context.object.data.energy = 120.0
     bpy.context.object.data.size = 1.0
 
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, -4.5, 2.2)
-    camera.rotation_euler = (mathutils.Vector((0.0, 0.6, 0.4)) - camera.location).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = camera
+    st.add_camera_looking_at(scene, (0.0, -4.5, 2.2), (0.0, 0.6, 0.4))
     return scene
 
 
@@ -95,20 +71,13 @@ def render(scene, engine, name):
         # A 1-pixel box filter: uniform samples over the pixel, as RaySplats' jitter (a 0.01 filter width would
         # sample pixel centres only and alias every edge).
         cycles = st.use_cycles_on_cpu(scene, SAMPLES, pixel_filter=("BOX", 1.0), seed=1)
-        cycles.max_bounces = cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = 4
+        st.cycles_paths_as_compared(cycles, bounces=4)
         cycles.transparent_max_bounces = 8
-        cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
-        cycles.caustics_reflective = cycles.caustics_refractive = False
-        cycles.blur_glossy = 0.0
-        cycles.light_sampling_threshold = 0.0
     else:
         scene.raysplats.samples = SAMPLES
         # Every pixel at the full sample count: the 3 % bound was set without adaptive sampling, whose stopped
         # pixels (from 64 samples at the default threshold) add noise (MAD 0.032 on Blender 4.2 and 5.0).
-        scene.raysplats.use_adaptive_sampling = False
-        scene.raysplats.max_bounces = 4
-        scene.raysplats.seed = 1
-        scene.raysplats.caustics_reflective = scene.raysplats.caustics_refractive = False
+        st.raysplats_paths_as_compared(scene, bounces=4)
     return st.render_to_array(name)[..., :3].astype(np.float64)
 
 

@@ -9,7 +9,6 @@
 import unittest
 
 import bpy
-import mathutils
 import numpy as np
 
 import splat_testing as st
@@ -28,17 +27,6 @@ TOGGLES = ("use_pass_emit", "use_pass_diffuse_direct", "use_pass_diffuse_indirec
 SPLAT_COLOR = (0.8, 0.35, 0.2)  # display colour, as trained
 
 
-def principled(name, color, metallic=0.0, roughness=0.5):
-    material = bpy.data.materials.new(name)
-    material.use_nodes = True
-    node = material.node_tree.nodes["Principled BSDF"]
-    node.distribution = "GGX"
-    node.inputs["Base Color"].default_value = (*color, 1.0)
-    node.inputs["Metallic"].default_value = metallic
-    node.inputs["Roughness"].default_value = roughness
-    return material
-
-
 def emission(name, color, strength):
     material = bpy.data.materials.new(name)
     material.use_nodes = True
@@ -51,13 +39,6 @@ def emission(name, color, strength):
     return material
 
 
-def add(primitive, material, **kwargs):
-    primitive(**kwargs)
-    obj = bpy.context.object
-    obj.data.materials.append(material)
-    return obj
-
-
 def mesh_scene():
     """A diffuse floor and box, a glossy gold sphere, an emissive slab, a point light, the world's grey light; a camera
     looking down at them; every light pass on."""
@@ -67,19 +48,16 @@ def mesh_scene():
     world.use_nodes = False
     st.set_world_color(world, (0.1, 0.12, 0.15))
     scene.world = world
-    add(bpy.ops.mesh.primitive_plane_add, principled("Floor", (0.7, 0.6, 0.5)), size=8.0)
-    add(bpy.ops.mesh.primitive_cube_add, principled("Red", (0.8, 0.1, 0.1)), size=0.8, location=(-1.2, 0.5, 0.4))
-    add(bpy.ops.mesh.primitive_uv_sphere_add, principled("Gold", (0.9, 0.7, 0.3), metallic=1.0, roughness=0.3),
+    add, mesh = st.add_with_material, bpy.ops.mesh
+    add(mesh.primitive_plane_add, st.principled("Floor", (0.7, 0.6, 0.5)), size=8.0)
+    add(mesh.primitive_cube_add, st.principled("Red", (0.8, 0.1, 0.1)), size=0.8, location=(-1.2, 0.5, 0.4))
+    add(mesh.primitive_uv_sphere_add, st.principled("Gold", (0.9, 0.7, 0.3), metallic=1.0, roughness=0.3),
         radius=0.6, location=(0.4, 0.4, 0.6))
-    add(bpy.ops.mesh.primitive_cube_add, emission("Lamp", (1.0, 0.6, 0.3), 3.0), size=0.5, location=(1.4, -0.6, 0.25))
+    add(mesh.primitive_cube_add, emission("Lamp", (1.0, 0.6, 0.3), 3.0), size=0.5, location=(1.4, -0.6, 0.25))
     bpy.ops.object.light_add(type="POINT", location=(1.5, -1.0, 3.0))
     bpy.context.object.data.energy = 300.0
     bpy.context.object.data.shadow_soft_size = 0.0
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, -4.0, 3.5)
-    camera.rotation_euler = (mathutils.Vector((0.0, 0.3, 0.3)) - camera.location).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = camera
+    st.add_camera_looking_at(scene, (0.0, -4.0, 3.5), (0.0, 0.3, 0.3))
     for name in TOGGLES:
         setattr(bpy.context.view_layer, name, True)
     return scene
@@ -90,16 +68,9 @@ def render(scene, engine, name):
     scene.render.engine = engine
     if engine == "CYCLES":
         cycles = st.use_cycles_on_cpu(scene, SAMPLES, pixel_filter=("BOX", 1.0), seed=1)
-        cycles.max_bounces = cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = 4
-        cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
-        cycles.caustics_reflective = cycles.caustics_refractive = False
-        cycles.blur_glossy = 0.0
-        cycles.light_sampling_threshold = 0.0
+        st.cycles_paths_as_compared(cycles, bounces=4)
     else:
-        scene.raysplats.use_adaptive_sampling = False
-        scene.raysplats.max_bounces = 4
-        scene.raysplats.seed = 1
-        scene.raysplats.caustics_reflective = scene.raysplats.caustics_refractive = False
+        st.raysplats_paths_as_compared(scene, bounces=4)
         scene.raysplats.pixel_filter, scene.raysplats.filter_width = "BOX", 1.0
     exr = st.render_multilayer_exr(name)
     layer = next(key.split(".")[0] for key in exr)
@@ -143,32 +114,19 @@ class MeshLightPassesAgreeWithCycles(unittest.TestCase):
             self.assertLess(np.mean(difference), 0.01 * scale)
 
 
-def flat_gaussians(centres, sigma, opacity, color=SPLAT_COLOR):
-    """Flat Gaussians (z extent 1e-4) of one size, opacity and display colour, as the core's cloud dict."""
-    count = len(centres)
-    sh = np.zeros((count, 1, 3), dtype=np.float32)
-    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
-    return {"positions": np.asarray(centres, dtype=np.float32),
-            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
-            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
-            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
-
-
 def mixed_scene():
     """The mesh scene with glass added, a polygon splat object of semi-transparent Gaussians over the floor and the
     sphere, and a compact one over the box; Film > Transparent."""
     scene = mesh_scene()
     scene.raysplats.samples = 16
     scene.render.film_transparent = True
-    glass = bpy.data.materials.new("Glass")
-    glass.use_nodes = True
-    node = glass.node_tree.nodes["Principled BSDF"]
-    node.inputs["Roughness"].default_value = 0.0
-    (node.inputs.get("Transmission Weight") or node.inputs.get("Transmission")).default_value = 1.0
-    add(bpy.ops.mesh.primitive_uv_sphere_add, glass, radius=0.4, location=(-0.3, -1.0, 0.4))
+    glass = st.principled("Glass", (1.0, 1.0, 1.0), roughness=0.0, transmission=1.0)
+    st.add_with_material(bpy.ops.mesh.primitive_uv_sphere_add, glass, radius=0.4, location=(-0.3, -1.0, 0.4))
     polygons, _ = creation.add_gaussian_object(
-        bpy.context, "Splats", flat_gaussians([(0.4, 0.0, 1.5), (-0.6, -0.6, 1.2)], 0.4, 0.7), 8, 3.0, "Z")
-    compact = creation.add_compact_object(bpy.context, "Compact", flat_gaussians([(-1.2, 0.5, 1.2)], 0.3, 0.8), "Z")
+        bpy.context, "Splats", st.flat_gaussian_cloud([(0.4, 0.0, 1.5), (-0.6, -0.6, 1.2)], 0.4, 0.7, SPLAT_COLOR), 8,
+        3.0, "Z")
+    compact = creation.add_compact_object(
+        bpy.context, "Compact", st.flat_gaussian_cloud([(-1.2, 0.5, 1.2)], 0.3, 0.8, SPLAT_COLOR), "Z")
     return scene, polygons, compact
 
 
@@ -199,12 +157,12 @@ class BakedSplatEmission(unittest.TestCase):
         world.use_nodes = False
         st.set_world_color(world, (0.1, 0.1, 0.1))
         scene.world = world
-        add(bpy.ops.mesh.primitive_plane_add, principled("Floor", (0.7, 0.6, 0.5)), size=20.0)
+        st.add_with_material(bpy.ops.mesh.primitive_plane_add, st.principled("Floor", (0.7, 0.6, 0.5)), size=20.0)
         bpy.ops.object.light_add(type="POINT", location=(0.0, 0.0, 6.0))
         bpy.context.object.data.energy = 500.0
         centre = (-3.875, 0.125)  # a pixel's centre
-        creation.add_gaussian_object(bpy.context, "Splats", flat_gaussians([(*centre, 2.0)] * 3, 2.0, 1.0), 8, 3.0,
-                                     "Z")
+        creation.add_gaussian_object(
+            bpy.context, "Splats", st.flat_gaussian_cloud([(*centre, 2.0)] * 3, 2.0, 1.0, SPLAT_COLOR), 8, 3.0, "Z")
         data = bpy.data.cameras.new("Camera")
         data.type, data.ortho_scale = "ORTHO", 8.0
         camera = bpy.data.objects.new("Camera", data)

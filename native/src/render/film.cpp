@@ -83,6 +83,11 @@ void denoising_normal_of(const SampleRecord& s, float* out) {
     out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
 }
 
+bool is_light_pass(FilmChannel c) {
+    return std::size_t(c) >= std::size_t(FilmChannel::Emission) &&
+           std::size_t(c) < std::size_t(FilmChannel::Emission) + kLightPassCount;
+}
+
 template <LightPass pass>
 void light_of(const SampleRecord& s, float* out) {
     const std::array<float, 3>& v = s.light[std::size_t(pass)];
@@ -251,6 +256,8 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         for (int c = 0; c < 3; ++c) odd_radiance_[3 * pixel + std::size_t(c)] += record.radiance[std::size_t(c)];
     float values[8];
     for (const FilmChannelInfo& info : film_channels()) {
+        // Without light passes their sums stay 0: nothing to add.
+        if (!record.light_passes && is_light_pass(info.channel)) continue;
         const int c = info.component_count();
         float* out = values_[std::size_t(info.channel)].data() + std::size_t(c) * pixel;
         if (info.combination == SampleCombination::FirstSample) {
