@@ -94,7 +94,7 @@ struct PathIntegrator::DisplayRun {
     glm::vec3 display;         // D
     float transmittance;       // T
     // Light passes: the path's light before the run, as outer_radiance, and the scatterings before it (the run's
-    // own light, linear(D + T display(L_behind)) - T L_behind, is emitted light seen at that level).
+    // own light is emitted light seen at that level: close_run_light).
     std::array<glm::vec3, kLightPassCount> outer_light;
     int level;
 };
@@ -529,7 +529,6 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.gaussian_count = float(p.camera_gaussians);
     return record;
 }
-
 
 // Light emitted towards a path vertex after `level` scatterings (a mesh's emission, an area light, the world, BAKED
 // Gaussians' radiance; Cycles, kernel/film/light_passes.h, film_write_emission_or_background_pass): seen before any
