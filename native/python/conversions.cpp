@@ -128,9 +128,27 @@ const char* python_type_name(ParameterType type) {
     return "?";
 }
 
+std::vector<Matrix4> matrices_from(const py::handle& value, const char* name) {
+    std::vector<Matrix4> out;
+    if (value.is_none()) return out;
+    const FloatArray a = FloatArray::ensure(value);
+    if (!a) throw InvalidArgument(std::string("'") + name + "' must be an array of 4x4 matrices");
+    const py::ssize_t n = require_shape(a, name, {kAnySize, 4, 4});
+    out.resize(std::size_t(n));
+    for (py::ssize_t k = 0; k < n; ++k) std::copy(a.data() + 16 * k, a.data() + 16 * (k + 1), out[k].m.begin());
+    return out;
+}
+
 Camera camera_from(const py::dict& camera) {
     Camera c;
-    apply_dict(camera, camera_parameters(), c);
+    // "motion" (Camera::motion, an (n, 4, 4) array) is a list of matrices, which the parameter table's values are
+    // not: taken here, the rest through the table.
+    py::dict parameters;
+    for (const auto& [key, value] : camera) {
+        if (py::str(key).cast<std::string>() == "motion") c.motion = matrices_from(value, "motion");
+        else parameters[key] = value;
+    }
+    apply_dict(parameters, camera_parameters(), c);
     c.validate();
     return c;
 }

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <string>
 
+#include <glm/gtc/quaternion.hpp>
+
 #include "raysplats/errors.h"
 #include "render_math.h"
 
@@ -99,6 +101,9 @@ void Camera::validate() const {
     require(aperture_fstop >= 0.0f, "aperture f-stop must be >= 0");
     require(aperture_blades >= 0, "aperture blades must be >= 0");
     require(aperture_ratio > 0.0f, "aperture ratio must be > 0");
+    require(motion.size() <= 129, "at most 129 motion steps");
+    for (std::size_t k = 0; k < motion.size(); ++k)
+        motion[k].check_affine(("camera motion step " + std::to_string(k)).c_str());
 }
 
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
@@ -144,6 +149,48 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
             forward_[i] = fw[i];
         }
     }
+    if (c.motion.size() >= 2) {
+        for (const Matrix4& step : c.motion) {
+            glm::mat3 rotation = linear_part(step);
+            for (int k = 0; k < 3; ++k) rotation[k] = glm::normalize(rotation[k]);
+            const glm::quat q = glm::normalize(glm::quat_cast(rotation));
+            motion_.push_back({q.w, q.x, q.y, q.z, step(0, 3), step(1, 3), step(2, 3)});
+        }
+        const glm::mat3 inverse = glm::inverse(linear_part(c.camera_to_world));
+        const glm::vec3 t = -(inverse * translation_part(c.camera_to_world));
+        for (int r = 0; r < 3; ++r) {
+            for (int k = 0; k < 3; ++k) world_to_camera_[4 * r + k] = inverse[k][r];
+            world_to_camera_[4 * r + 3] = t[r];
+        }
+    }
+}
+
+CameraRay CameraRayGenerator::at_time(const CameraRay& ray, float time) const {
+    if (motion_.size() < 2 || !ray.valid) return ray;
+    // Cycles (util/transform.h, transform_motion_array_interpolate): between the two steps around `time`, the
+    // translation interpolated linearly and the rotation spherically (the shorter way).
+    const float f = std::min(std::max(time, 0.0f), 1.0f) * float(motion_.size() - 1);
+    const std::size_t k = std::min(std::size_t(f), motion_.size() - 2);
+    const float w = f - float(k);
+    const auto& a = motion_[k];
+    const auto& b = motion_[k + 1];
+    const glm::quat q = glm::slerp(glm::quat(a[0], a[1], a[2], a[3]), glm::quat(b[0], b[1], b[2], b[3]), w);
+    const glm::mat3 rotation = glm::mat3_cast(q);
+    const glm::vec3 translation = glm::mix(glm::vec3(a[4], a[5], a[6]), glm::vec3(b[4], b[5], b[6]), w);
+    const float* m = world_to_camera_;
+    auto to_camera = [m](const float v[3], float w1) {
+        return glm::vec3(m[0] * v[0] + m[1] * v[1] + m[2] * v[2] + w1 * m[3],
+                         m[4] * v[0] + m[5] * v[1] + m[6] * v[2] + w1 * m[7],
+                         m[8] * v[0] + m[9] * v[1] + m[10] * v[2] + w1 * m[11]);
+    };
+    const glm::vec3 o = rotation * to_camera(ray.origin, 1.0f) + translation;
+    const glm::vec3 d = glm::normalize(rotation * to_camera(ray.direction, 0.0f));
+    CameraRay moved = ray;
+    for (int i = 0; i < 3; ++i) {
+        moved.origin[i] = o[i];
+        moved.direction[i] = d[i];
+    }
+    return moved;
 }
 
 void CameraRayGenerator::aperture_point(float lens_u, float lens_v, float point[2]) const {

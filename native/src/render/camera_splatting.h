@@ -56,7 +56,7 @@ public:
     static bool applies(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                         const GaussianShader& shader);
     // Why it does not, though the setting is on, in the user's words ("needs a perspective camera", "needs a camera
-    // without depth of field", "needs every Gaussian object Baked"); null when it does or the setting is off. Its
+    // without depth of field", "needs a scene without motion blur", "needs every Gaussian object Baked"); null when it does or the setting is off. Its
     // splats are a pinhole's projection: a thin lens's rays leave the aperture at many points.
     static const char* traced_reason(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                                      const GaussianShader& shader);

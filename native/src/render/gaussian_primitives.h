@@ -79,6 +79,7 @@ struct GaussianSet {
     std::uint32_t index = 0;  // in the scene
     const GaussianCloud* cloud = nullptr;
     Matrix4 object_to_world;
+    std::vector<Matrix4> motion;          // Scene::set_gaussians_motion's matrices (empty: none)
     glm::mat3 linear{1.0f};               // A
     glm::vec3 translation{0.0f};          // b
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: world points and view directions into the cloud's frame

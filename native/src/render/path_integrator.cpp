@@ -17,13 +17,14 @@ inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const
     const glm::vec3 v0 = vtx(idx[0]), v1 = vtx(idx[1]), v2 = vtx(idx[2]);
     Surface sf;
     sf.p = ray.o + seg.t * ray.d;
-    sf.ng = glm::normalize(m.normal_matrix * glm::cross(v1 - v0, v2 - v0));
+    const glm::mat3 normal_matrix = m.normal_matrix_at(ray.time);
+    sf.ng = glm::normalize(normal_matrix * glm::cross(v1 - v0, v2 - v0));
     const float b0 = 1.0f - seg.u - seg.v, b1 = seg.u, b2 = seg.v;
     sf.ns = sf.ng;
     if (m.desc.normals) {
         const float* n = m.desc.normals;
         auto nrm = [&](std::uint32_t i) { return glm::vec3(n[3 * i], n[3 * i + 1], n[3 * i + 2]); };
-        const glm::vec3 ni = m.normal_matrix * (b0 * nrm(idx[0]) + b1 * nrm(idx[1]) + b2 * nrm(idx[2]));
+        const glm::vec3 ni = normal_matrix * (b0 * nrm(idx[0]) + b1 * nrm(idx[1]) + b2 * nrm(idx[2]));
         const float len = glm::length(ni);
         if (len > 0.0f) sf.ns = ni / len;
         if (glm::dot(sf.ns, sf.ng) < 0.0f) sf.ns = -sf.ns;
@@ -335,7 +336,7 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
             p.camera_transmittance *= seg.transmittance;
             camera_distance = p.ray.camera_distance + seg.t;
         }
-        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf, camera_distance};
+        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf, camera_distance, p.ray.time};
         return true;
     }
     if (p.camera_segment) {
@@ -385,7 +386,7 @@ void PathIntegrator::add_direct_lighting(PathState& p, const Bsdf& bsdf, const g
         const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf);
         const float cos_i = glm::dot(ns, ls.wi);
         if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
-        const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
+        const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, p.ray.time, false, c);
         // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
         const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
         if (vis > 0.0f) p.radiance += p.beta * f * cos_i * ls.value * (vis * w);
@@ -404,7 +405,7 @@ bool PathIntegrator::next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3
     p.mis_pdf = bs.delta ? 0.0f : bs.pdf;
     if (!next_vertex(p)) return false;
     const bool below = glm::dot(bs.wi, ng) < 0.0f;
-    p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
+    p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf, -1.0f, p.ray.time};
     return true;
 }
 
