@@ -49,6 +49,28 @@ def use_cycles_on_cpu(scene, samples, pixel_filter=("BOX", 1.0), seed=1):
     return cycles
 
 
+def emission_material(name, color=(1.0, 1.0, 1.0)):
+    """A material that only emits `color` at strength 1."""
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    nodes = material.node_tree.nodes
+    nodes.clear()
+    output = nodes.new("ShaderNodeOutputMaterial")
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*color, 1.0)
+    emission.inputs["Strength"].default_value = 1.0
+    material.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def drive(obj, path, index, expression):
+    """Animates a property by a driver of the frame (a Blender simple expression, evaluated at subframes too): motion
+    at exactly constant speed, with no keyframe interpolation to set."""
+    fcurve = obj.driver_add(path, index)
+    fcurve.driver.type = "SCRIPTED"
+    fcurve.driver.expression = expression
+
+
 def native():
     from raysplats import native as native_module
     return native_module.core()

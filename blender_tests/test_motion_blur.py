@@ -22,32 +22,12 @@ ORTHO_SCALE = 4.0                 # scene units across the image's width
 PIXELS_PER_UNIT = WIDTH / ORTHO_SCALE
 SPEED = 1.0                       # scene units per frame: 30 pixels per frame
 CYCLES_SAMPLES = 512
-CYCLES_TOLERANCE = 0.05           # mean |difference| over the mean pixel value
-
-
-def emission_material(name, color=(1.0, 1.0, 1.0)):
-    material = bpy.data.materials.new(name)
-    material.use_nodes = True
-    nodes = material.node_tree.nodes
-    nodes.clear()
-    output = nodes.new("ShaderNodeOutputMaterial")
-    emission = nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*color, 1.0)
-    material.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
-    return material
-
-
-def drive(obj, path, index, expression):
-    """Animates a property by a driver of the frame (Blender's simple expressions, evaluated at subframes too): motion
-    at exactly constant speed, with no keyframe interpolation to set."""
-    fcurve = obj.driver_add(path, index)
-    fcurve.driver.type = "SCRIPTED"
-    fcurve.driver.expression = expression
+CYCLES_TOLERANCE = 0.025          # mean |difference| over the mean pixel value
 
 
 def slide(obj, speed):
     """Moves an object along +X at `speed` scene units per frame, through x = 0 at frame 5."""
-    drive(obj, "location", 0, f"(frame - 5) * {speed}")
+    st.drive(obj, "location", 0, f"(frame - 5) * {speed}")
 
 
 def ortho_scene(samples=128):
@@ -77,7 +57,7 @@ def add_bar():
     bpy.ops.mesh.primitive_plane_add(size=1.0)
     bar = bpy.context.object
     bar.scale = (2.0 / PIXELS_PER_UNIT, 30.0 / PIXELS_PER_UNIT, 1.0)
-    bar.data.materials.append(emission_material("Bar"))
+    bar.data.materials.append(st.emission_material("Bar"))
     slide(bar, SPEED)
     bpy.context.scene.frame_set(5)
     return bar
@@ -153,8 +133,8 @@ class MovingSplats(unittest.TestCase):
                  "PIECES": {"objects": "PIECES"}}
         for kind, options in kinds.items():
             scene = ortho_scene(128)
-            obj = st.import_file("small_sh3_inria.ply", **options)
-            obj.scale = (0.25, 0.25, 0.25)
+            obj = st.import_file("donut_sh0.ply", **options)
+            obj.scale = (5.0, 5.0, 5.0)  # about 32 pixels across
             bpy.context.view_layer.update()
             slide(obj, SPEED)
             scene.frame_set(5)
@@ -203,16 +183,16 @@ def cycles_scene():
     scene.world = world
     bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.0))
     moving = bpy.context.object
-    moving.data.materials.append(emission_material("Moving", (0.9, 0.4, 0.1)))
+    moving.data.materials.append(st.emission_material("Moving", (0.9, 0.4, 0.1)))
     slide(moving, 0.5)
     bpy.ops.mesh.primitive_cube_add(size=0.6, location=(1.2, 0.6, -0.5))
-    bpy.context.object.data.materials.append(emission_material("Still", (0.1, 0.5, 0.9)))
+    bpy.context.object.data.materials.append(st.emission_material("Still", (0.1, 0.5, 0.9)))
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
     scene.camera = camera
     camera.data.lens = 35.0
-    drive(camera, "location", 2, "8 - (frame - 5) * 0.25")
-    drive(camera, "rotation_euler", 2, "(frame - 5) * 0.025")
+    st.drive(camera, "location", 2, "8 - (frame - 5) * 0.25")
+    st.drive(camera, "rotation_euler", 2, "(frame - 5) * 0.025")
     scene.frame_set(5)
     scene.render.use_motion_blur = True
     scene.render.motion_blur_shutter = 1.0

@@ -141,11 +141,13 @@ std::vector<Matrix4> matrices_from(const py::handle& value, const char* name) {
 
 Camera camera_from(const py::dict& camera) {
     Camera c;
-    // "motion" (Camera::motion, an (n, 4, 4) array) is a list of matrices, which the parameter table's values are
-    // not: taken here, the rest through the table.
+    // "motion" and "frame_motion" (Camera::motion and frame_motion, (n, 4, 4) arrays) are lists of matrices, which
+    // the parameter table's values are not: taken here, the rest through the table.
     py::dict parameters;
     for (const auto& [key, value] : camera) {
-        if (py::str(key).cast<std::string>() == "motion") c.motion = matrices_from(value, "motion");
+        const std::string name = py::str(key);
+        if (name == "motion") c.motion = matrices_from(value, "motion");
+        else if (name == "frame_motion") c.frame_motion = matrices_from(value, "frame_motion");
         else parameters[key] = value;
     }
     apply_dict(parameters, camera_parameters(), c);

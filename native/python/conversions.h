@@ -82,7 +82,8 @@ void apply_dict(const py::dict& dict, const ParameterTable<Target>& table, Targe
     }
 }
 
-// The camera of a dict of camera_parameters() and "motion" (Camera::motion as an (n, 4, 4) array), validated.
+// The camera of a dict of camera_parameters(), "motion" and "frame_motion" (Camera::motion and frame_motion as
+// (n, 4, 4) arrays), validated.
 Camera camera_from(const py::dict& camera);
 // The settings of a dict of render_setting_parameters(), validated.
 RenderSettings settings_from(const py::dict& settings);

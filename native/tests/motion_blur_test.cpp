@@ -5,6 +5,7 @@
 // still image's; the same holds when the camera moves by the opposite amount instead.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -221,4 +222,51 @@ TEST(MotionBlur, ValidationNamesTheStep) {
     Camera c = test_camera();
     c.motion = std::vector<Matrix4>(2, Matrix4::scale(0, 1, 1));
     EXPECT_THROW(c.validate(), InvalidArgument);
+}
+
+// The Vector pass (SampleRecord::vector, Cycles' motion pass): a plane moving D px a frame along +X under a camera
+// moving E px a frame along +Y reads (-D, +E, -D, +E) wherever it is seen, 0 on the world, and 0 everywhere without
+// the camera's frame motion; a Gaussian cloud reads the same.
+TEST(MotionVectors, MovingObjectAndCameraGiveTheirImageMotion) {
+    const TestMesh plane = make_quad_z(-0.1f, 0.1f, -0.1f, 0.1f, -kDepth, 0);
+    GaussianCloud cloud;
+    cloud.sh_degree = 0;
+    const float p[3] = {0.0f, 0.0f, 0.0f}, q[4] = {1, 0, 0, 0}, s[3] = {0.03f, 0.03f, 0.003f}, rgb[3] = {1, 1, 1};
+    add_gaussian(cloud, p, q, s, 0.99f, rgb);
+    const float d = float(10.0 / kPixelsPerUnit), e = float(5.0 / kPixelsPerUnit);
+    Camera c = test_camera();
+    RenderSettings st = test_settings(1);
+    for (bool gaussians : {false, true}) {
+        Scene scene;
+        scene.set_world(black_world());
+        scene.add_material(emissive(1, 1, 1));
+        if (gaussians) {
+            const Matrix4 at = Matrix4::translation(0.0f, 0.0f, -kDepth);
+            scene.add_gaussians(cloud, at);
+            scene.set_gaussians_frame_motion(0, Matrix4::translation(-d, 0, 0) * at, Matrix4::translation(d, 0, 0) * at);
+        } else {
+            scene.add_mesh(plane.desc());
+            scene.set_mesh_frame_motion(0, Matrix4::translation(-d, 0, 0), Matrix4::translation(d, 0, 0));
+        }
+        c.frame_motion.clear();
+        const Film without = render(scene, c, st);
+        for (float v : without[FilmChannel::Vector]) ASSERT_EQ(v, 0.0f);
+        c.frame_motion = {Matrix4::translation(0, -e, 0), Matrix4::translation(0, e, 0)};
+        const Film film = render(scene, c, st);
+        const float expected[4] = {-10.0f, 5.0f, -10.0f, 5.0f};
+        std::size_t seen = 0;
+        double error = 0.0;
+        for (std::size_t px = 0; px < film.pixel_count(); ++px) {
+            const float* v = &film[FilmChannel::Vector][4 * px];
+            if (std::isinf(film.depth()[px])) {
+                for (int k = 0; k < 4; ++k) ASSERT_EQ(v[k], 0.0f) << "world pixel " << px;
+                continue;
+            }
+            ++seen;
+            for (int k = 0; k < 4; ++k) error = std::max(error, double(std::abs(v[k] - expected[k])));
+        }
+        std::printf("%s: %zu pixels seen, max |vector error| %.2e px\n", gaussians ? "Gaussians" : "mesh", seen, error);
+        EXPECT_GT(seen, 100u);
+        EXPECT_LT(error, 1e-3);
+    }
 }

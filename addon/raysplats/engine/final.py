@@ -99,13 +99,19 @@ def render_final(engine, depsgraph):
     clock = progress.StageClock()
     t0 = time.perf_counter()
     # Motion blur: the scene at the shutter's steps first, so that the frame's scene is read at the frame.
-    motion = None
+    # The Vector pass (written, as by Cycles, only without motion blur): the previous and next frames' placements.
+    motion = frames = None
     if scene.render.use_motion_blur:
         with clock.stage("read"):
             motion = motion_blur.shutter_motion(engine, depsgraph)
+    elif passes.vector_pass_enabled(depsgraph.view_layer):
+        with clock.stage("read"):
+            frames = motion_blur.frame_motion(engine, depsgraph)
     scene_sync, how = _frame_scene(engine, depsgraph, clock)
     render_scene, stats = scene_sync.render_scene, scene_sync.stats
     scene_sync.apply_motion(motion)
+    if frames is not None:
+        scene_sync.apply_frame_motion(frames)
     t_sync = time.perf_counter() - t0
     engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | Building BVH")
     with clock.stage("bvh"):
@@ -113,6 +119,8 @@ def render_final(engine, depsgraph):
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
     if motion is not None and motion.camera is not None:
         camera["motion"] = motion.camera
+    if frames is not None and frames.camera is not None:
+        camera["frame_motion"] = frames.camera
     # The denoiser's guides are computed when the render denoises or writes them.
     render_settings = sync.render_settings(
         scene, width, height, settings.samples, adaptive=True,

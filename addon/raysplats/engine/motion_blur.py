@@ -1,4 +1,5 @@
-# Motion blur in final renders: where each object and the camera are across the shutter. Blender's own settings, as
+# Motion blur in final renders: where each object and the camera are across the shutter; and for the Vector pass
+# (motion blur off, as Cycles writes it), where they are at the previous and the next frame. Blender's own settings, as
 # Cycles reads them (intern/cycles/blender/sync.cpp, object.cpp, util.h): Render Properties > Motion Blur
 # (`render.use_motion_blur`, `motion_blur_shutter` in frames, `motion_blur_position`, Scene.cycles' before 4.2) and each object's
 # `Object.cycles.use_motion_blur` and `motion_steps` (Object Properties > Motion Blur; the Cycles add-on defines
@@ -68,6 +69,45 @@ def _moving(matrices):
     return matrices is not None and any(not np.array_equal(m, matrices[0]) for m in matrices[1:])
 
 
+def _placements(engine, depsgraph, times, keys, camera):
+    """{(instance key, time): matrix_world} of the instances whose keys are in `keys`, and {("camera", time): the
+    camera's normalized matrix_world} when `camera`, at each frame time of `times` (engine.frame_set); the frame is
+    set back (its subframe too) before returning."""
+    scene = depsgraph.scene
+    frame, subframe = scene.frame_current, float(scene.frame_subframe)
+    placed = {}
+    try:
+        for time in times:
+            whole = math.floor(time)
+            engine.frame_set(whole, time - whole)
+            for instance in depsgraph.object_instances:
+                key = instance_key(instance)
+                if key in keys:
+                    placed[key, time] = np.array(instance.matrix_world, dtype=np.float32)
+            if camera:
+                placed["camera", time] = np.array(scene.camera.evaluated_get(depsgraph).matrix_world.normalized(),
+                                                  dtype=np.float32)
+    finally:
+        engine.frame_set(frame, subframe)
+    return placed
+
+
+def frame_motion(engine, depsgraph):
+    """The Vector pass's motion: a ShutterMotion whose matrices are each object's and the camera's at the previous
+    and the next frame (Cycles' motion pass, MOTION_PASS: the frame before and after, whatever the shutter), for every
+    object drawn at both; the camera's even when still (the pass projects through it)."""
+    scene = depsgraph.scene
+    time = scene.frame_current + float(scene.frame_subframe)
+    keys = {instance_key(instance) for instance in depsgraph.object_instances}
+    placed = _placements(engine, depsgraph, (time - 1.0, time + 1.0), keys, scene.camera is not None)
+    objects = {}
+    for key in keys:
+        if (key, time - 1.0) in placed and (key, time + 1.0) in placed:
+            objects[key] = np.stack((placed[key, time - 1.0], placed[key, time + 1.0]))
+    camera = np.stack((placed["camera", time - 1.0], placed["camera", time + 1.0])) if scene.camera else None
+    return ShutterMotion(objects, camera)
+
+
 def shutter_motion(engine, depsgraph):
     """The ShutterMotion of the frame (None when Motion Blur is off). Evaluates the scene at every step's time with
     engine.frame_set and sets the frame back (its subframe too) before returning, so the depsgraph is the frame's
@@ -89,20 +129,7 @@ def shutter_motion(engine, depsgraph):
     camera_count = motion_step_count(scene.camera.original) if scene.camera is not None else 0
     times = sorted({round(t, 9) for count in set(wanted.values()) | ({camera_count} - {0})
                     for t in _step_times(centre, shutter, count)})
-    placed = {}  # (instance key or "camera", time) -> matrix
-    try:
-        for time in times:
-            whole = math.floor(time)
-            engine.frame_set(whole, time - whole)
-            for instance in depsgraph.object_instances:
-                key = instance_key(instance)
-                if key in wanted:
-                    placed[key, time] = np.array(instance.matrix_world, dtype=np.float32)
-            if camera_count:
-                camera = scene.camera.evaluated_get(depsgraph)
-                placed["camera", time] = np.array(camera.matrix_world.normalized(), dtype=np.float32)
-    finally:
-        engine.frame_set(frame, subframe)
+    placed = _placements(engine, depsgraph, times, wanted, camera_count > 0)
 
     def steps(key, count):
         matrices = [placed.get((key, round(t, 9))) for t in _step_times(centre, shutter, count)]

@@ -10,7 +10,7 @@ from ..blender import compat
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
                     "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
-                    "IndexMA": "use_pass_material_index"}
+                    "IndexMA": "use_pass_material_index", "Vector": "use_pass_vector"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -48,6 +48,11 @@ DENOISING_KEYS = ("denoising_albedo", "denoising_normal")
 def denoising_passes_enabled(view_layer):
     """Whether the view layer writes a Denoising Albedo or Normal pass."""
     return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in DENOISING_KEYS)
+
+
+def vector_pass_enabled(view_layer):
+    """Whether the view layer writes the Vector pass (whose motion the render then reads: final.py)."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] == "vector")
 
 
 def blender_name(channel):

@@ -386,6 +386,18 @@ class SceneSync:
                 self.render_scene.set_gaussians_motion(index, matrices)
         self.has_motion = bool(objects)
 
+    def apply_frame_motion(self, motion):
+        """Gives each native mesh and cloud its object's matrices at the previous and next frames (a
+        motion_blur.ShutterMotion of motion_blur.frame_motion), for the Vector pass."""
+        for key, is_mesh, index in self.instances:
+            matrices = motion.objects.get(key)
+            if matrices is None:
+                continue
+            if is_mesh:
+                self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
+            else:
+                self.render_scene.set_gaussians_frame_motion(index, matrices[0], matrices[1])
+
     def _mesh_arrays(self, obj, materials, mesh_cache):
         """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""
         slot_materials = [slot.material for slot in obj.material_slots]

@@ -104,6 +104,9 @@ void Camera::validate() const {
     require(motion.size() <= 129, "at most 129 motion steps");
     for (std::size_t k = 0; k < motion.size(); ++k)
         motion[k].check_affine(("camera motion step " + std::to_string(k)).c_str());
+    require(frame_motion.empty() || frame_motion.size() == 2,
+            "frame motion takes the previous and next frames' matrices (two)");
+    for (const Matrix4& m : frame_motion) m.check_affine("camera frame motion");
 }
 
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {

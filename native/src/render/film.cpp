@@ -81,6 +81,9 @@ void denoising_albedo_of(const SampleRecord& s, float* out) {
 void denoising_normal_of(const SampleRecord& s, float* out) {
     out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
 }
+void vector_of(const SampleRecord& s, float* out) {
+    out[0] = s.vector[0], out[1] = s.vector[1], out[2] = s.vector[2], out[3] = s.vector[3];
+}
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
 
@@ -119,6 +122,10 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::DenoisingNormal, "denoising_normal", "Denoising Normal", "XYZ", "VECTOR", SampleCombination::Mean,
      0.0f, "Denoiser guide: world-space normal the camera ray sees, weighted as composited (needs denoising_data; "
      "else 0)", denoising_normal_of},
+    // Cycles' name and layout (XYZW: to the previous frame, then from the next), from the first sample as Position.
+    {FilmChannel::Vector, "vector", "Vector", "XYZW", "VECTOR", SampleCombination::FirstSample, 0.0f,
+     "Motion of the depth's point on the image to the previous frame (XY) and from the next (ZW), pixels, y up "
+     "(first sample; 0: none, or no camera frame motion)", vector_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample

@@ -122,6 +122,7 @@ struct PathIntegrator::PathState {
     glm::vec3 normal{0.0f};
     glm::vec3 position{0.0f};  // the data passes at the depth (SampleRecord)
     float object_index = 0.0f, material_index = 0.0f;
+    const FrameMotion* depth_motion = nullptr;  // how the depth's object moves between frames (the Vector pass)
     // The Mist pass's sum (SampleRecord::mist) and the camera ray's transmittance in front of the current segment
     // (surfaces it passed through stochastically).
     float mist_clearance = 0.0f, camera_transmittance = 1.0f;
@@ -204,6 +205,7 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
             p.normal_at_mesh = seg.depth_at_mesh;
             p.position = p.ray.o + seg.depth * p.ray.d;
             if (seg.depth_set) {
+                p.depth_motion = &seg.depth_set->frame_motion;
                 p.object_index = float(seg.depth_set->object_pass_index);
                 p.material_index = float(seg.depth_set->material_pass_index);
             }
@@ -299,7 +301,9 @@ void PathIntegrator::add_mesh_guides(PathState& p, const Segment& seg, const Sur
 // index and its face's material's.
 void PathIntegrator::mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const {
     p.position = sf.p;
-    p.object_index = float(s_.meshes[s_.top[seg.top_geom].index]->desc.pass_index);
+    const MeshRecord& mesh = *s_.meshes[s_.top[seg.top_geom].index];
+    p.object_index = float(mesh.desc.pass_index);
+    p.depth_motion = &mesh.frame_motion;
     p.material_index = s_.materials.empty() ? 0.0f : float(s_.materials[sf.material].pass_index);
     p.normal_at_mesh = false;
 }
@@ -445,6 +449,7 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.position = {p.position.x, p.position.y, p.position.z};
     record.object_index = p.object_index;
     record.material_index = p.material_index;
+    if (p.depth < kInf && vectors_.active()) record.vector = vectors_.vector(p.position, p.depth_motion);
     record.mist = 1.0f - p.mist_clearance;
     record.denoising_albedo = {p.guide_albedo.x, p.guide_albedo.y, p.guide_albedo.z};
     record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};

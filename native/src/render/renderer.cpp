@@ -228,7 +228,8 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     }
     const ShadowVisibility shadow(impl, settings);
     const GaussianSegmentTracer tracer(impl, settings, shadow);
-    const PathIntegrator integrator(impl, settings, tracer, shadow);
+    const MotionVectorProjector vectors(camera, w, h);
+    const PathIntegrator integrator(impl, settings, tracer, shadow, vectors);
     const CameraRayGenerator camera_rays(camera, w, h);
     const PixelFilterSampler pixel_filter(settings.pixel_filter, settings.filter_width);
     const std::unique_ptr<const CameraSplatting> splatting =

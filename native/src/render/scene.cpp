@@ -255,6 +255,7 @@ void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, co
     GaussianSet& set = *impl_->gaussians[index];
     set.cloud = &cloud;
     set.set_transform(object_to_world);
+    set.frame_motion = FrameMotion{};
     set.dirty = GaussianSet::Dirty::Data;
 }
 
@@ -278,6 +279,7 @@ void Scene::set_gaussians_transform(std::uint32_t index, const Matrix4& object_t
     object_to_world.check_affine((at("Gaussian cloud", index) + " object_to_world").c_str());
     GaussianSet& set = *impl_->gaussians[index];
     set.set_transform(object_to_world);
+    set.frame_motion = FrameMotion{};
     if (set.dirty == GaussianSet::Dirty::None) set.dirty = GaussianSet::Dirty::Transform;
 }
 
@@ -313,6 +315,22 @@ void Scene::set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>
     set.motion.clear();
     if (object_to_world_steps.size() >= 2) set.motion = object_to_world_steps;
     impl_->built = false;
+}
+
+void Scene::set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    previous.check_affine((at("mesh", index) + " previous frame's matrix").c_str());
+    next.check_affine((at("mesh", index) + " next frame's matrix").c_str());
+    MeshRecord& m = *impl_->meshes[index];
+    m.frame_motion = FrameMotion::between(m.desc.object_to_world, previous, next);
+}
+
+void Scene::set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    previous.check_affine((at("Gaussian cloud", index) + " previous frame's matrix").c_str());
+    next.check_affine((at("Gaussian cloud", index) + " next frame's matrix").c_str());
+    GaussianSet& set = *impl_->gaussians[index];
+    set.frame_motion = FrameMotion::between(set.object_to_world, previous, next);
 }
 
 bool Scene::Impl::has_motion() const {

@@ -27,6 +27,7 @@ struct MeshRecord {
     // Scene::set_mesh_motion's matrices (empty: none), and their linear parts for the normals at a ray's time.
     std::vector<Matrix4> motion;
     std::vector<glm::mat3> motion_linear;
+    FrameMotion frame_motion;  // Scene::set_mesh_frame_motion's (the Vector pass)
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
     // The normal matrix where a ray of shutter time `time` sees the mesh: with motion, the inverse transpose of the

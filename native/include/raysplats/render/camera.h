@@ -71,9 +71,12 @@ struct Camera {
     // matrix_world drops it); fewer than two: a still camera. camera_to_world remains the frame's placement, which
     // the rays of every time are moved from.
     std::vector<Matrix4> motion;
+    // The Vector pass: camera_to_world at the previous and at the next frame (two matrices), or none (the pass is
+    // then 0), as Cycles' motion pass takes the camera's (perspective and orthographic cameras).
+    std::vector<Matrix4> frame_motion;
 
     // Throws InvalidArgument for NaN/Inf, non-positive lens/sensor/scale, clip_end <= clip_start, a camera
-    // matrix (or a motion step) that is not affine, more than 129 motion steps, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
+    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two matrices, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
     // distance or blade count.
     void validate() const;
 };

@@ -60,6 +60,11 @@ struct SampleRecord {
     // normal, a volumetric one's -ray direction (as the Normal pass), the mesh's shading normal, 0 for the world.
     std::array<float, 3> denoising_albedo{0.0f, 0.0f, 0.0f};
     std::array<float, 3> denoising_normal{0.0f, 0.0f, 0.0f};
+    // The Vector pass (Cycles' motion pass, kernel/geom/primitive.h): the motion on the image, in pixels with y
+    // growing up, of the point at `depth` from the previous frame and to the next, (pre.x, pre.y, post.x, post.y) =
+    // (raster(previous) - raster(now), raster(now) - raster(next)); 0 where there is no surface, or where the camera
+    // has no frame motion (Camera::frame_motion) or is panoramic (src/render/motion_vectors.h).
+    std::array<float, 4> vector{0.0f, 0.0f, 0.0f, 0.0f};
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
@@ -67,9 +72,9 @@ struct SampleRecord {
 
 enum class FilmChannel : std::uint8_t {
     Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex,
-    DenoisingAlbedo, DenoisingNormal
+    DenoisingAlbedo, DenoisingNormal, Vector
 };
-constexpr std::size_t kFilmChannelCount = 12;
+constexpr std::size_t kFilmChannelCount = 13;
 
 // How a channel combines the samples of a pixel.
 enum class SampleCombination : std::uint8_t {

@@ -117,6 +117,12 @@ public:
     // Validated as object_to_world; a change of motion makes the next build a full one.
     void set_mesh_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
     void set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
+    // The Vector pass: where mesh or Gaussian cloud `index` was at the previous frame and will be at the next (its
+    // object_to_world then), for the motion of its surface points (film.h, SampleRecord::vector); an object without
+    // them is still. Forgotten when the object's matrix or data is replaced (update_*, set_gaussians_transform). No
+    // rebuild is needed.
+    void set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
+    void set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
     // Whether some object has motion (set_*_motion with two matrices or more).
     bool has_motion() const;
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
