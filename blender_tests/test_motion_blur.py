@@ -10,12 +10,13 @@
 #   blur is off stays sharp, the frame is put back after the shutter's steps, and Camera Rays as Splats steps aside
 #   for a moving splat object and says so in the status bar.
 import unittest
+from types import SimpleNamespace
 
 import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.engine import final, motion_blur
+from raysplats.engine import final, motion_blur, ui
 
 WIDTH, HEIGHT = 120, 60
 ORTHO_SCALE = 4.0                 # scene units across the image's width
@@ -172,9 +173,41 @@ class MovingSplats(unittest.TestCase):
                                                       "this render's camera rays were ray traced")
 
 
+class _RecordingLayout:
+    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append((type(owner).__name__, name))
+
+    def column(self, *args, **kwargs):
+        return _RecordingLayout(self.log)
+
+
+class Panels(unittest.TestCase):
+    def test_panels_draw_every_setting_the_engine_reads(self):
+        scene = ortho_scene(1)
+        bar = add_bar()
+        context = SimpleNamespace(engine=scene.render.engine, scene=scene, object=bar)
+        drawn = []
+        for panel in (ui.RAYSPLATS_RENDER_PT_motion_blur, ui.RAYSPLATS_OBJECT_PT_motion_blur):
+            self.assertTrue(panel.poll(context), panel.__name__)
+            stand_in = SimpleNamespace(layout=_RecordingLayout(drawn))
+            panel.draw_header(stand_in, context)
+            panel.draw(stand_in, context)
+        names = {name for _, name in drawn}
+        self.assertLessEqual({"use_motion_blur", "motion_blur_shutter", "motion_blur_position", "motion_steps"}, names)
+        self.assertIn(type(motion_blur.position_settings(scene)).__name__,
+                      {owner for owner, name in drawn if name == "motion_blur_position"})
+
+
 def cycles_scene():
-    """Emissive cubes on a dark world: one moving along +X, one still, seen by a perspective camera moving along +Z
-    (towards them) while turning; frame 5."""
+    """Emissive cubes on a dark world: one moving along +X, one still, seen by a perspective camera moving along +X and
+    -Z (towards them) while turning about its view axis (the still cube smeared by the camera alone, about 8 px);
+    frame 5."""
     scene = st.reset_render_scene(160, 120, CYCLES_SAMPLES)
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
@@ -191,8 +224,9 @@ def cycles_scene():
     scene.collection.objects.link(camera)
     scene.camera = camera
     camera.data.lens = 35.0
+    st.drive(camera, "location", 0, "(frame - 5) * 0.4")
     st.drive(camera, "location", 2, "8 - (frame - 5) * 0.25")
-    st.drive(camera, "rotation_euler", 2, "(frame - 5) * 0.025")
+    st.drive(camera, "rotation_euler", 2, "(frame - 5) * 0.1")
     scene.frame_set(5)
     scene.render.use_motion_blur = True
     scene.render.motion_blur_shutter = 1.0
@@ -216,10 +250,10 @@ class AgainstCycles(unittest.TestCase):
         sharp = st.render_to_array("motion_raysplats_sharp")[..., :3].astype(np.float64)
         sharp_mad = np.abs(sharp - cycles).mean() / cycles.mean()
         print(f"\nMotion blur against Cycles, Blender {bpy.app.version_string} (160x120, {CYCLES_SAMPLES} spp): mean "
-              f"|difference| {100 * mad:.2f} % of the mean pixel (limit {100 * CYCLES_TOLERANCE:.0f} %); without "
+              f"|difference| {100 * mad:.2f} % of the mean pixel (limit {100 * CYCLES_TOLERANCE:.1f} %); without "
               f"motion blur {100 * sharp_mad:.2f} %")
         self.assertLessEqual(mad, CYCLES_TOLERANCE)
-        self.assertGreater(sharp_mad, 3 * mad, "the blur is what makes them agree")
+        self.assertGreater(sharp_mad, 2 * mad, "the blur is what makes them agree")
 
 
 if __name__ == "__main__":
