@@ -3,7 +3,8 @@
 # - analytic: an emissive bar moving at v pixels per frame, seen by an orthographic camera, is smeared over v x
 #   shutter pixels: the image's variance along the motion grows by (v shutter)^2 / 12 (within 3 %) and its total stays
 #   (within 1.5 %), for each shutter position (whose interval shifts the smear's centre by +-v shutter / 2); a moving
-#   splat object (polygons, compact points, spatial pieces under a moving empty) grows by the same amount;
+#   splat object (polygons, compact points, spatial pieces under a moving empty, Blender 5.3's splats) grows by the
+#   same amount;
 # - against Cycles: a mesh scene with a moving cube and a moving camera (512 samples): mean absolute difference of
 #   the images within the tolerance below;
 # - a seed gives one frame, a still scene renders as with motion blur off (bit for bit), an object whose motion
@@ -16,6 +17,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
+from raysplats.blender import compat
 from raysplats.engine import final, motion_blur, ui
 
 WIDTH, HEIGHT = 120, 60
@@ -132,9 +134,17 @@ class MovingSplats(unittest.TestCase):
     def test_every_kind_of_splat_object_smears_by_speed_times_shutter(self):
         kinds = {"POLYGONS": {"representation": "POLYGONS"}, "POINTS": {"representation": "POINTS"},
                  "PIECES": {"objects": "PIECES"}}
+        if compat.HAS_NATIVE_GAUSSIAN_SPLATS:
+            kinds["BLENDER_SPLATS"] = {"representation": "POLYGONS"}
         for kind, options in kinds.items():
             scene = ortho_scene(128)
             obj = st.import_file("donut_sh0.ply", **options)
+            if kind == "BLENDER_SPLATS":
+                for other in bpy.context.view_layer.objects:
+                    other.select_set(other is obj)
+                bpy.context.view_layer.objects.active = obj
+                self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
+                obj = bpy.context.view_layer.objects.active
             obj.scale = (5.0, 5.0, 5.0)  # about 32 pixels across
             bpy.context.view_layer.update()
             slide(obj, SPEED)
