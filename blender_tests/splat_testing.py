@@ -2,6 +2,7 @@
 # Gaussian model (covariances, SH evaluation) to check exported files against.
 import os
 import struct
+import types
 
 import bpy
 import numpy as np
@@ -61,6 +62,60 @@ def emission_material(name, color=(1.0, 1.0, 1.0)):
     emission.inputs["Strength"].default_value = 1.0
     material.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
     return material
+
+
+def camera_above_scene(width, height, samples, camera_type, ortho_scale):
+    """An empty RaySplats scene (fixed samples, seed 3) with a black world and a camera at (0, 0, 10) looking down -Z
+    (`camera_type` PERSP or ORTHO, `ortho_scale` units across an orthographic view)."""
+    scene = reset_render_scene(width, height, samples)
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = False
+    set_world_color(world, (0.0, 0.0, 0.0))
+    scene.world = world
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, 0.0, 10.0)
+    camera.data.type = camera_type
+    camera.data.ortho_scale = ortho_scale
+    scene.camera = camera
+    scene.raysplats.use_adaptive_sampling = False
+    scene.raysplats.seed = 3
+    return scene
+
+
+class RecordingLayout:
+    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append((type(owner).__name__, name))
+
+    def column(self, *args, **kwargs):
+        return RecordingLayout(self.log)
+
+    row = box = grid_flow = column_flow = split = column
+
+    def label(self, *args, **kwargs):
+        pass
+
+    def operator(self, *args, **kwargs):
+        return types.SimpleNamespace()
+
+    def prop_search(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
+
+
+def convert_to_blender_splats(obj):
+    """Object > Convert to Blender's own splats (Blender 5.3) on `obj` alone; returns the active object after it."""
+    for other in bpy.context.view_layer.objects:
+        other.select_set(other is obj)
+    bpy.context.view_layer.objects.active = obj
+    result = bpy.ops.object.raysplats_to_native_splats()
+    assert result == {"FINISHED"}, result
+    return bpy.context.view_layer.objects.active
 
 
 def drive(obj, path, index, expression):

@@ -35,21 +35,9 @@ def slide(obj, speed):
 
 def ortho_scene(samples=128):
     """A black world, an orthographic camera looking down -Z at the plane z = 0 (4 units across 120 pixels), frame 5."""
-    scene = st.reset_render_scene(WIDTH, HEIGHT, samples)
+    scene = st.camera_above_scene(WIDTH, HEIGHT, samples, "ORTHO", ORTHO_SCALE)
     scene.view_settings.view_transform = "Standard"
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, (0.0, 0.0, 0.0))
-    scene.world = world
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, 10.0)
-    camera.data.type = "ORTHO"
-    camera.data.ortho_scale = ORTHO_SCALE
-    scene.camera = camera
-    scene.raysplats.use_adaptive_sampling = False
     scene.raysplats.max_bounces = 0
-    scene.raysplats.seed = 3
     scene.raysplats.blend_space = "LINEAR"  # a pixel's value is the mean of its samples' linear values
     scene.frame_set(5)
     return scene
@@ -140,11 +128,7 @@ class MovingSplats(unittest.TestCase):
             scene = ortho_scene(128)
             obj = st.import_file("donut_sh0.ply", **options)
             if kind == "BLENDER_SPLATS":
-                for other in bpy.context.view_layer.objects:
-                    other.select_set(other is obj)
-                bpy.context.view_layer.objects.active = obj
-                self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
-                obj = bpy.context.view_layer.objects.active
+                obj = st.convert_to_blender_splats(obj)
             obj.scale = (5.0, 5.0, 5.0)  # about 32 pixels across
             bpy.context.view_layer.update()
             slide(obj, SPEED)
@@ -183,20 +167,6 @@ class MovingSplats(unittest.TestCase):
                                                       "this render's camera rays were ray traced")
 
 
-class _RecordingLayout:
-    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
-
-    def prop(self, owner, name, **kwargs):
-        self.log.append((type(owner).__name__, name))
-
-    def column(self, *args, **kwargs):
-        return _RecordingLayout(self.log)
-
-
 class Panels(unittest.TestCase):
     def test_panels_draw_every_setting_the_engine_reads(self):
         scene = ortho_scene(1)
@@ -205,7 +175,7 @@ class Panels(unittest.TestCase):
         drawn = []
         for panel in (ui.RAYSPLATS_RENDER_PT_motion_blur, ui.RAYSPLATS_OBJECT_PT_motion_blur):
             self.assertTrue(panel.poll(context), panel.__name__)
-            stand_in = SimpleNamespace(layout=_RecordingLayout(drawn))
+            stand_in = SimpleNamespace(layout=st.RecordingLayout(drawn))
             panel.draw_header(stand_in, context)
             panel.draw(stand_in, context)
         names = {name for _, name in drawn}

@@ -25,19 +25,7 @@ VECTOR_TOLERANCE = 0.1
 
 
 def base_scene(camera_type, samples=4):
-    scene = st.reset_render_scene(WIDTH, HEIGHT, samples)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, (0.0, 0.0, 0.0))
-    scene.world = world
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, 10.0)
-    camera.data.type = camera_type
-    camera.data.ortho_scale = ORTHO_SCALE
-    scene.camera = camera
-    scene.raysplats.use_adaptive_sampling = False
-    scene.raysplats.seed = 3
+    scene = st.camera_above_scene(WIDTH, HEIGHT, samples, camera_type, ORTHO_SCALE)
     scene.render.use_motion_blur = False
     bpy.context.view_layer.use_pass_vector = True
     bpy.context.view_layer.use_pass_position = True
