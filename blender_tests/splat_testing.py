@@ -107,6 +107,9 @@ class RecordingLayout:
     def prop_search(self, owner, name, *args, **kwargs):
         self.prop(owner, name)
 
+    def template_curve_mapping(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
+
 
 def convert_to_blender_splats(obj):
     """Object > Convert to Blender's own splats (Blender 5.3) on `obj` alone; returns the active object after it."""

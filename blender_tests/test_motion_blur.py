@@ -86,6 +86,31 @@ class MovingBar(unittest.TestCase):
         self.assertEqual(scene.frame_current, 5)
         self.assertEqual(scene.frame_subframe, 0.0)
 
+    def test_shutter_curve_shapes_the_smear(self):
+        # A triangular curve (closed, fully open at the middle, closed again): times drawn with a triangular density,
+        # whose variance is 1/24 of the shutter squared (a box's is 1/12).
+        scene = ortho_scene()
+        add_bar()
+        scene.render.use_motion_blur = False
+        still = spread_x(st.render_to_array("motion_curve_still"))
+        scene.render.use_motion_blur = True
+        scene.render.motion_blur_shutter = 1.0
+        mapping = scene.render.motion_blur_shutter_curve
+        points = mapping.curves[0].points
+        points.new(0.5, 1.0)
+        points[0].location, points[-1].location = (0.0, 0.0), (1.0, 0.0)
+        for point in points:
+            point.handle_type = "VECTOR"  # straight segments
+        mapping.update()
+        self.assertIsNotNone(motion_blur.shutter_curve(scene.render))
+        moving = spread_x(st.render_to_array("motion_curve_triangle"))
+        smear = SPEED * PIXELS_PER_UNIT
+        growth = moving[2] - still[2]
+        print(f"\nTriangular shutter curve, Blender {bpy.app.version_string}: variance growth {growth:.2f} px^2 "
+              f"(smear {smear:.0f} px: {smear ** 2 / 24:.2f}), total {moving[0]:.2f} (still {still[0]:.2f})")
+        self.assertAlmostEqual(growth, smear ** 2 / 24, delta=0.03 * smear ** 2 / 24)
+        self.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+
     def test_object_switch_and_still_scene(self):
         scene = ortho_scene(16)
         bar = add_bar()
@@ -114,6 +139,7 @@ class MovingBar(unittest.TestCase):
         self.assertEqual(motion_blur.motion_step_count(bar), 9)
         bar.cycles.use_motion_blur = False
         self.assertEqual(motion_blur.motion_step_count(bar), 0)
+        self.assertIsNone(motion_blur.shutter_curve(scene.render), "Blender's default curve is flat")
         scene.render.use_motion_blur = False
         self.assertIsNone(motion_blur.shutter_motion(None, bpy.context.evaluated_depsgraph_get()))
 
@@ -173,13 +199,16 @@ class Panels(unittest.TestCase):
         bar = add_bar()
         context = SimpleNamespace(engine=scene.render.engine, scene=scene, object=bar)
         drawn = []
-        for panel in (ui.RAYSPLATS_RENDER_PT_motion_blur, ui.RAYSPLATS_OBJECT_PT_motion_blur):
+        for panel in (ui.RAYSPLATS_RENDER_PT_motion_blur, ui.RAYSPLATS_RENDER_PT_motion_blur_curve,
+                      ui.RAYSPLATS_OBJECT_PT_motion_blur):
             self.assertTrue(panel.poll(context), panel.__name__)
             stand_in = SimpleNamespace(layout=st.RecordingLayout(drawn))
-            panel.draw_header(stand_in, context)
-            panel.draw(stand_in, context)
+            for method in ("draw_header", "draw"):
+                if hasattr(panel, method):
+                    getattr(panel, method)(stand_in, context)
         names = {name for _, name in drawn}
-        self.assertLessEqual({"use_motion_blur", "motion_blur_shutter", "motion_blur_position", "motion_steps"}, names)
+        self.assertLessEqual({"use_motion_blur", "motion_blur_shutter", "motion_blur_position",
+                              "motion_blur_shutter_curve", "motion_steps"}, names)
         self.assertIn(type(motion_blur.position_settings(scene)).__name__,
                       {owner for owner, name in drawn if name == "motion_blur_position"})
 

@@ -119,6 +119,8 @@ def render_final(engine, depsgraph):
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
     if motion is not None and motion.camera is not None:
         camera["motion"] = motion.camera
+    if motion is not None and motion.curve is not None:
+        camera["shutter_curve"] = motion.curve
     if frames is not None and frames.camera is not None:
         camera["frame_motion"] = frames.camera
     # The denoiser's guides are computed when the render denoises or writes them.

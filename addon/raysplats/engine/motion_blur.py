@@ -19,10 +19,29 @@ _CENTRE_OFFSET = {"START": 0.5, "CENTER": 0.0, "END": -0.5}
 class ShutterMotion:
     """What moves during the shutter: `objects` maps an instance_key to the object's matrix_world at its motion
     steps (an (n, 4, 4) float32 array, from the shutter's opening to its closing) for every object that moves;
-    `camera` is the camera's normalized matrix_world at its steps, or None when it is still."""
+    `camera` is the camera's normalized matrix_world at its steps, or None when it is still; `curve` the shutter
+    curve (shutter_curve), or None."""
 
-    def __init__(self, objects, camera):
-        self.objects, self.camera = objects, camera
+    def __init__(self, objects, camera, curve=None):
+        self.objects, self.camera, self.curve = objects, camera, curve
+
+
+# Values of the shutter curve handed to the core: Cycles' RAMP_TABLE_SIZE (blender/curves.cpp, curvemapping_to_array).
+SHUTTER_CURVE_VALUES = 256
+
+
+def shutter_curve(render):
+    """Render Properties > Motion Blur > Shutter Curve (render.motion_blur_shutter_curve) at SHUTTER_CURVE_VALUES
+    equally spaced times across the shutter, as Cycles samples it; None when it is flat (Blender's default: the
+    shutter fully open throughout), which the core draws uniformly."""
+    mapping = render.motion_blur_shutter_curve
+    mapping.initialize()
+    curve = mapping.curves[0]
+    values = np.array([mapping.evaluate(curve, i / (SHUTTER_CURVE_VALUES - 1)) for i in range(SHUTTER_CURVE_VALUES)],
+                      dtype=np.float32)
+    # A curve drawn below 0 (an unclipped curve, or rounding at a closed end) is a closed shutter there.
+    values = np.maximum(values, 0.0)
+    return None if np.all(values == values[0]) else values
 
 
 def position_settings(scene):
@@ -141,4 +160,4 @@ def shutter_motion(engine, depsgraph):
         if _moving(matrices):
             objects[key] = matrices
     camera = steps("camera", camera_count) if camera_count else None
-    return ShutterMotion(objects, camera if _moving(camera) else None)
+    return ShutterMotion(objects, camera if _moving(camera) else None, shutter_curve(render))

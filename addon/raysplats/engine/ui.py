@@ -148,6 +148,18 @@ class RAYSPLATS_RENDER_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
         column.prop(render, "motion_blur_shutter")
 
 
+class RAYSPLATS_RENDER_PT_motion_blur_curve(RaySplatsPanel, bpy.types.Panel):
+    """The shutter curve, as Cycles' Shutter Curve subpanel draws it."""
+    bl_label = "Shutter Curve"
+    bl_parent_id = "RAYSPLATS_RENDER_PT_motion_blur"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        render = context.scene.render
+        self.layout.active = render.use_motion_blur
+        self.layout.template_curve_mapping(render, "motion_blur_shutter_curve")
+
+
 class RAYSPLATS_OBJECT_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
     """An object's motion blur switch and steps (Object.cycles, the Cycles add-on's, which the engine reads as
     Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation is not blurred (docs)."""
@@ -276,7 +288,7 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
 
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
             RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_motion_blur,
-            RAYSPLATS_OBJECT_PT_motion_blur, RAYSPLATS_RENDER_PT_performance,
+            RAYSPLATS_RENDER_PT_motion_blur_curve, RAYSPLATS_OBJECT_PT_motion_blur, RAYSPLATS_RENDER_PT_performance,
             RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
             RAYSPLATS_RENDER_PT_other,
             RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes)

@@ -104,6 +104,13 @@ void Camera::validate() const {
     require(motion.size() <= 129, "at most 129 motion steps");
     for (std::size_t k = 0; k < motion.size(); ++k)
         motion[k].check_affine(("camera motion step " + std::to_string(k)).c_str());
+    require(shutter_curve.empty() || shutter_curve.size() >= 2, "a shutter curve needs two values or more");
+    float curve_total = 0.0f;
+    for (float v : shutter_curve) {
+        require(finite(v) && v >= 0.0f, "shutter curve values must be finite and >= 0");
+        curve_total += v;
+    }
+    require(shutter_curve.empty() || curve_total > 0.0f, "the shutter curve is 0 throughout (never open)");
     require(frame_motion.empty() || frame_motion.size() == 2,
             "frame motion takes the previous and next frames' matrices (two)");
     for (const Matrix4& m : frame_motion) m.check_affine("camera frame motion");
@@ -112,6 +119,36 @@ void Camera::validate() const {
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
     return CameraRayGenerator(c, width, height)(x, y);
 }
+
+namespace {
+
+// Cycles' shutter table (scene/camera.cpp, util_cdf_inverted with SHUTTER_TABLE_SIZE entries): the curve read
+// linearly between its values (shutter_curve_eval), integrated by the trapezoid rule on a fine grid, normalised,
+// and inverted at `entries` equally spaced values of u.
+std::vector<float> shutter_table(const std::vector<float>& curve, int entries) {
+    constexpr int kSteps = 4096;
+    auto eval = [&](float x) {
+        const float f = x * float(curve.size() - 1);
+        const std::size_t k = std::min(std::size_t(f), curve.size() - 2);
+        const float w = f - float(k);
+        return (1.0f - w) * curve[k] + w * curve[k + 1];
+    };
+    std::vector<double> cdf(kSteps + 1, 0.0);
+    for (int i = 1; i <= kSteps; ++i)
+        cdf[i] = cdf[i - 1] + 0.5 * (double(eval(float(i - 1) / kSteps)) + double(eval(float(i) / kSteps))) / kSteps;
+    std::vector<float> table(static_cast<std::size_t>(entries));
+    int i = 0;
+    for (int e = 0; e < entries; ++e) {
+        const double u = double(e) / (entries - 1) * cdf[kSteps];
+        while (i < kSteps && cdf[i + 1] < u) ++i;
+        const double span = cdf[std::min(i + 1, kSteps)] - cdf[i];
+        const double w = span > 0.0 ? (u - cdf[i]) / span : 0.0;
+        table[std::size_t(e)] = float((double(i) + std::min(1.0, std::max(0.0, w))) / kSteps);
+    }
+    return table;
+}
+
+}  // namespace
 
 CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
     : camera_(c), width_(float(width)), height_(float(height)) {
@@ -152,6 +189,7 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
             forward_[i] = fw[i];
         }
     }
+    if (!c.shutter_curve.empty()) shutter_table_ = shutter_table(c.shutter_curve, 256);
     if (c.motion.size() >= 2) {
         for (const Matrix4& step : c.motion) {
             glm::mat3 rotation = linear_part(step);
@@ -166,6 +204,15 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
             world_to_camera_[4 * r + 3] = t[r];
         }
     }
+}
+
+float CameraRayGenerator::shutter_time(float u) const {
+    if (shutter_table_.empty()) return u;
+    // Cycles' lookup_table_read: linear between the table's entries.
+    const float f = u * float(shutter_table_.size() - 1);
+    const std::size_t k = std::min(std::size_t(f), shutter_table_.size() - 2);
+    const float w = f - float(k);
+    return (1.0f - w) * shutter_table_[k] + w * shutter_table_[k + 1];
 }
 
 CameraRay CameraRayGenerator::at_time(const CameraRay& ray, float time) const {

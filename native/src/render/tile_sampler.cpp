@@ -92,11 +92,11 @@ std::uint64_t TileSampler::start_packet(TileState& tile, Packet& packet) const {
         } else {
             cr = camera_rays_(x + jx, y + jy);
         }
-        // Motion blur: the ray's shutter time is the stream's next number, uniform over the shutter as Cycles' box
-        // shutter (none is drawn in a still scene, so its samples keep their numbers).
+        // Motion blur: the ray's shutter time is the stream's next number, through the shutter curve (none is drawn
+        // in a still scene, so its samples keep their numbers).
         float time = 0.0f;
         if (motion_) {
-            time = rng.next();
+            time = camera_rays_.shutter_time(rng.next());
             cr = camera_rays_.at_time(cr, time);
         }
         if (!cr.valid) {

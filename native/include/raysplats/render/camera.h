@@ -71,12 +71,16 @@ struct Camera {
     // matrix_world drops it); fewer than two: a still camera. camera_to_world remains the frame's placement, which
     // the rays of every time are moved from.
     std::vector<Matrix4> motion;
+    // Motion blur's shutter curve (Blender's render.motion_blur_shutter_curve): how open the shutter is at equally
+    // spaced times from its opening to its closing (two values or more, >= 0, not all 0); a ray's time is drawn with
+    // that density, through the inverse of its integral as Cycles tabulates it. Empty: fully open throughout.
+    std::vector<float> shutter_curve;
     // The Vector pass: camera_to_world at the previous and at the next frame (two matrices), or none (the pass is
     // then 0), as Cycles' motion pass takes the camera's (perspective and orthographic cameras).
     std::vector<Matrix4> frame_motion;
 
     // Throws InvalidArgument for NaN/Inf, non-positive lens/sensor/scale, clip_end <= clip_start, a camera
-    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two matrices, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
+    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two matrices, a shutter curve of one value, negative or all 0, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
     // distance or blade count.
     void validate() const;
 };
@@ -117,6 +121,9 @@ public:
     // `ray` (of the camera at camera_to_world) as the camera placed at shutter time `time` in [0, 1] casts it: moved
     // rigidly from camera_to_world to the interpolated placement. The same ray without motion.
     CameraRay at_time(const CameraRay& ray, float time) const;
+    // The shutter time of a uniform number u in [0, 1): u itself, or with a shutter curve the inverse of its
+    // normalised integral at u (Camera::shutter_curve).
+    float shutter_time(float u) const;
 
     // Perspective: the pinhole projection these rays invert. A camera-space point (X, Y, Z) (looking down -Z) at
     // depth z = -Z lies at image position x = cx + fx X / z, y = cy - fy Y / z, in the pixel units above.
@@ -145,6 +152,7 @@ private:
     // Motion: each step's rotation (a unit quaternion w x y z) and translation, and camera_to_world's inverse
     // (row-major 3 x 4) that takes the frame's rays back to the camera's own space.
     std::vector<std::array<float, 7>> motion_;
+    std::vector<float> shutter_table_;  // the shutter curve's inverse CDF at equally spaced u (empty: none)
     float world_to_camera_[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
 };
 
