@@ -64,13 +64,19 @@ def spread_x(image):
     return total, mean, (column * (x - mean) ** 2).sum() / total
 
 
+def bar_scene(name):
+    """The moving bar's scene with motion blur on, and spread_x of its render with motion blur off."""
+    scene = ortho_scene()
+    add_bar()
+    scene.render.use_motion_blur = False
+    still = spread_x(st.render_to_array(name))
+    scene.render.use_motion_blur = True
+    return scene, still
+
+
 class MovingBar(unittest.TestCase):
     def test_smear_is_speed_times_shutter_at_every_position(self):
-        scene = ortho_scene()
-        add_bar()
-        scene.render.use_motion_blur = False
-        still = spread_x(st.render_to_array("motion_bar_still"))
-        scene.render.use_motion_blur = True
+        scene, still = bar_scene("motion_bar_still")
         for shutter, position, shift in ((0.5, "CENTER", 0.0), (1.0, "START", 0.5), (0.5, "END", -0.5)):
             scene.render.motion_blur_shutter = shutter
             motion_blur.position_settings(scene).motion_blur_position = position
@@ -89,11 +95,7 @@ class MovingBar(unittest.TestCase):
     def test_shutter_curve_shapes_the_smear(self):
         # A triangular curve (closed, fully open at the middle, closed again): times drawn with a triangular density,
         # whose variance is 1/24 of the shutter squared (a box's is 1/12).
-        scene = ortho_scene()
-        add_bar()
-        scene.render.use_motion_blur = False
-        still = spread_x(st.render_to_array("motion_curve_still"))
-        scene.render.use_motion_blur = True
+        scene, still = bar_scene("motion_curve_still")
         scene.render.motion_blur_shutter = 1.0
         mapping = scene.render.motion_blur_shutter_curve
         points = mapping.curves[0].points
