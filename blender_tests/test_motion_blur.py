@@ -133,6 +133,25 @@ class MovingBar(unittest.TestCase):
         scene.raysplats.seed = 3
         np.testing.assert_array_equal(st.render_to_array("motion_switch_still"), off)
 
+    def test_persistent_data_renders_as_fresh(self):
+        # Persistent Data keeps the native scene between renders: frames 5 and 6 with motion blur, then frame 6
+        # without, each equal to a render that built its scene anew (the kept scene takes each frame's motion and
+        # gives it back when motion blur is turned off).
+        images = {}
+        for persistent in (False, True):
+            scene = ortho_scene(8)
+            add_bar()
+            scene.render.use_persistent_data = persistent
+            scene.render.use_motion_blur = True
+            for frame, blur in ((5, True), (6, True), (6, False)):
+                scene.frame_set(frame)
+                scene.render.use_motion_blur = blur
+                images[persistent, frame, blur] = st.render_to_array(f"motion_persistent_{persistent}_{frame}_{blur}")
+            self.assertEqual(final.last_render["scene"] != "new", persistent)
+        for frame, blur in ((5, True), (6, True), (6, False)):
+            np.testing.assert_array_equal(images[True, frame, blur], images[False, frame, blur])
+        self.assertFalse(np.array_equal(images[False, 6, True], images[False, 6, False]))
+
     def test_motion_steps_follow_cycles(self):
         scene = ortho_scene()
         bar = add_bar()
