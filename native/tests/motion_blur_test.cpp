@@ -266,7 +266,8 @@ TEST(MotionVectors, MovingObjectAndCameraGiveTheirImageMotion) {
         if (gaussians) {
             const Matrix4 at = Matrix4::translation(0.0f, 0.0f, -kDepth);
             scene.add_gaussians(cloud, at);
-            scene.set_gaussians_frame_motion(0, Matrix4::translation(-d, 0, 0) * at, Matrix4::translation(d, 0, 0) * at);
+            scene.set_gaussians_frame_motion(0, Matrix4::translation(-d, 0, 0) * at,
+                                             Matrix4::translation(d, 0, 0) * at);
         } else {
             scene.add_mesh(plane.desc());
             scene.set_mesh_frame_motion(0, Matrix4::translation(-d, 0, 0), Matrix4::translation(d, 0, 0));

@@ -1,9 +1,9 @@
 # Motion blur in final renders: where each object and the camera are across the shutter; and for the Vector pass
 # (motion blur off, as Cycles writes it), where they are at the previous and the next frame. Blender's own settings, as
 # Cycles reads them (intern/cycles/blender/sync.cpp, object.cpp, util.h): Render Properties > Motion Blur
-# (`render.use_motion_blur`, `motion_blur_shutter` in frames, `motion_blur_position`, Scene.cycles' before 4.2) and each object's
-# `Object.cycles.use_motion_blur` and `motion_steps` (Object Properties > Motion Blur; the Cycles add-on defines
-# them, and an object without them blurs with one step, their defaults). The scene is evaluated at each step's time
+# (`render.use_motion_blur`, `motion_blur_shutter` in frames, `motion_blur_position`, Scene.cycles' before 4.2,
+# the shutter curve) and each object's `Object.cycles.use_motion_blur` and `motion_steps` (Object Properties > Motion
+# Blur; the Cycles add-on defines them, and an object without them blurs with one step, their defaults). The scene is evaluated at each step's time
 # with RenderEngine.frame_set and put back at the frame afterwards, as Cycles' sync_motion does.
 import math
 

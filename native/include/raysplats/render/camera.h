@@ -80,8 +80,9 @@ struct Camera {
     std::vector<Matrix4> frame_motion;
 
     // Throws InvalidArgument for NaN/Inf, non-positive lens/sensor/scale, clip_end <= clip_start, a camera
-    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two matrices, a shutter curve of one value, negative or all 0, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
-    // distance or blade count.
+    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two
+    // matrices, a shutter curve of one value, negative or all 0, or empty angle ranges, a non-positive aperture
+    // ratio, a negative f-stop, focus distance or blade count.
     void validate() const;
 };
 
