@@ -2,6 +2,7 @@
 # Gaussian model (covariances, SH evaluation) to check exported files against.
 import os
 import struct
+import types
 
 import bpy
 import numpy as np
@@ -113,6 +114,83 @@ def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
             "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
             "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
             "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
+def emission_material(name, color=(1.0, 1.0, 1.0)):
+    """A material that only emits `color` at strength 1."""
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    nodes = material.node_tree.nodes
+    nodes.clear()
+    output = nodes.new("ShaderNodeOutputMaterial")
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*color, 1.0)
+    emission.inputs["Strength"].default_value = 1.0
+    material.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def camera_above_scene(width, height, samples, camera_type, ortho_scale):
+    """An empty RaySplats scene (fixed samples, seed 3) with a black world and a camera at (0, 0, 10) looking down -Z
+    (`camera_type` PERSP or ORTHO, `ortho_scale` units across an orthographic view)."""
+    scene = reset_render_scene(width, height, samples)
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = False
+    set_world_color(world, (0.0, 0.0, 0.0))
+    scene.world = world
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, 0.0, 10.0)
+    camera.data.type = camera_type
+    camera.data.ortho_scale = ortho_scale
+    scene.camera = camera
+    scene.raysplats.use_adaptive_sampling = False
+    scene.raysplats.seed = 3
+    return scene
+
+
+class RecordingLayout:
+    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append((type(owner).__name__, name))
+
+    def column(self, *args, **kwargs):
+        return RecordingLayout(self.log)
+
+    row = box = grid_flow = column_flow = split = column
+
+    def label(self, *args, **kwargs):
+        pass
+
+    def operator(self, *args, **kwargs):
+        return types.SimpleNamespace()
+
+    def prop_search(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
+
+    def template_curve_mapping(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
+
+
+def convert_to_blender_splats(obj):
+    """Object > Convert to Blender's own splats (Blender 5.3) on `obj` alone; returns the active object after it."""
+    for other in bpy.context.view_layer.objects:
+        other.select_set(other is obj)
+    bpy.context.view_layer.objects.active = obj
+    result = bpy.ops.object.raysplats_to_native_splats()
+    assert result == {"FINISHED"}, result
+    return bpy.context.view_layer.objects.active
+
+
+def drive(obj, path, index, expression):
+    """Animates a property by a driver of the frame (a Blender simple expression, evaluated at subframes too): motion
+    at exactly constant speed, with no keyframe interpolation to set."""
+    fcurve = obj.driver_add(path, index)
+    fcurve.driver.type = "SCRIPTED"
+    fcurve.driver.expression = expression
 
 
 def native():

@@ -26,6 +26,7 @@ EXPECTED = {
     "PRINCIPLED_VERSION": since((4, 0), "V2", "V1"),
     "AREA_LIGHT_POWER_SCALE": since((4, 0), 4.0 / np.pi, 1.0),
     "CAMERA_HAS_PANORAMA_SETTINGS": since((4, 0), True, False),
+    "MOTION_BLUR_POSITION_IN_RENDER_SETTINGS": since((4, 2), True, False),
     "MATERIAL_HAS_SURFACE_RENDER_METHOD": since((4, 2), True, False),
     "EEVEE_ENGINE": per_version("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT", "BLENDER_EEVEE_NEXT", "BLENDER_EEVEE",
                                 "BLENDER_EEVEE", "BLENDER_EEVEE"),

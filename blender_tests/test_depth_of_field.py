@@ -29,19 +29,6 @@ CYCLES_SAMPLES = 512
 LENS, FSTOP = 35.0, 0.35  # aperture f / N = 0.1 m: the near cube's disc is 8.6 px wide, the far one's 1.5 px
 
 
-def emission_material(name, color):
-    material = bpy.data.materials.new(name)
-    material.use_nodes = True
-    nodes = material.node_tree.nodes
-    nodes.clear()
-    output = nodes.new("ShaderNodeOutputMaterial")
-    emission = nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*color, 1.0)
-    emission.inputs["Strength"].default_value = 1.0
-    material.node_tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
-    return material
-
-
 def add_camera(location, direction, lens=LENS):
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     bpy.context.scene.collection.objects.link(camera)
@@ -69,7 +56,7 @@ def mesh_scene():
         bpy.ops.mesh.primitive_cube_add(size=size, location=location)
         cube = bpy.context.object
         cube.name = name
-        cube.data.materials.append(emission_material(name, color))
+        cube.data.materials.append(st.emission_material(name, color))
         cubes[name] = cube
     camera = add_camera((0.0, -4.0, 0.0), (0.0, 1.0, 0.0))
     dof = camera.data.dof
@@ -291,10 +278,7 @@ class GaussiansOutOfFocus(unittest.TestCase):
             scene = st.reset_render_scene(96, 72, 8)
             obj = st.import_file("small_sh3_inria.ply", **options)
             if kind == "BLENDER_SPLATS":
-                for other in bpy.context.view_layer.objects:
-                    other.select_set(other is obj)
-                bpy.context.view_layer.objects.active = obj
-                self.assertEqual(bpy.ops.object.raysplats_to_native_splats(), {"FINISHED"})
+                st.convert_to_blender_splats(obj)
             camera = add_camera((0.0, -6.0, 1.0), (0.0, 1.0, -0.12), lens=50.0)
             dof = camera.data.dof
             dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, 3.0, 0.25
@@ -314,31 +298,6 @@ class GaussiansOutOfFocus(unittest.TestCase):
         self.assertLess(psnr(images["pinhole"]), 35.0, "the blur is real")
 
 
-class _RecordingLayout:
-    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
-
-    def prop(self, owner, name, **kwargs):
-        self.log.append((type(owner).__name__, name))
-
-    def column(self, *args, **kwargs):
-        return _RecordingLayout(self.log)
-
-    row = box = grid_flow = column_flow = split = column
-
-    def label(self, *args, **kwargs):
-        pass
-
-    def operator(self, *args, **kwargs):
-        return SimpleNamespace()
-
-    def prop_search(self, owner, name, *args, **kwargs):
-        self.prop(owner, name)
-
-
 class CameraPanels(unittest.TestCase):
     def test_camera_properties_show_every_depth_of_field_setting(self):
         # Camera Properties > Depth of Field (its header's check box and the focus) and its Aperture subpanel are
@@ -351,7 +310,7 @@ class CameraPanels(unittest.TestCase):
         drawn = []
         for panel in (bpy.types.DATA_PT_camera_dof, bpy.types.DATA_PT_camera_dof_aperture):
             self.assertIn("RAYSPLATS", panel.COMPAT_ENGINES, panel.__name__)
-            stand_in = SimpleNamespace(layout=_RecordingLayout(drawn))
+            stand_in = SimpleNamespace(layout=st.RecordingLayout(drawn))
             for method in ("draw_header", "draw"):
                 if hasattr(panel, method):
                     getattr(panel, method)(stand_in, context)

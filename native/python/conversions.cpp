@@ -128,9 +128,38 @@ const char* python_type_name(ParameterType type) {
     return "?";
 }
 
+std::vector<Matrix4> matrices_from(const py::handle& value, const char* name) {
+    std::vector<Matrix4> out;
+    if (value.is_none()) return out;
+    const FloatArray a = FloatArray::ensure(value);
+    if (!a) throw InvalidArgument(std::string("'") + name + "' must be an array of 4x4 matrices");
+    const py::ssize_t n = require_shape(a, name, {kAnySize, 4, 4});
+    out.resize(std::size_t(n));
+    for (py::ssize_t k = 0; k < n; ++k) std::copy(a.data() + 16 * k, a.data() + 16 * (k + 1), out[k].m.begin());
+    return out;
+}
+
+std::vector<float> floats_from(const py::handle& value, const char* name) {
+    if (value.is_none()) return {};
+    const FloatArray a = FloatArray::ensure(value);
+    if (!a) throw InvalidArgument(std::string("'") + name + "' must be an array of numbers");
+    const py::ssize_t n = require_shape(a, name, {kAnySize});
+    return std::vector<float>(a.data(), a.data() + n);
+}
+
 Camera camera_from(const py::dict& camera) {
     Camera c;
-    apply_dict(camera, camera_parameters(), c);
+    // "motion" and "frame_motion" (Camera::motion and frame_motion, (n, 4, 4) arrays) and "shutter_curve" (n
+    // values) are lists, which the parameter table's values are not: taken here, the rest through the table.
+    py::dict parameters;
+    for (const auto& [key, value] : camera) {
+        const std::string name = py::str(key);
+        if (name == "motion") c.motion = matrices_from(value, "motion");
+        else if (name == "frame_motion") c.frame_motion = matrices_from(value, "frame_motion");
+        else if (name == "shutter_curve") c.shutter_curve = floats_from(value, "shutter_curve");
+        else parameters[key] = value;
+    }
+    apply_dict(parameters, camera_parameters(), c);
     c.validate();
     return c;
 }

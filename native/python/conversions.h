@@ -63,6 +63,10 @@ py::dict cloud_to_dict(GaussianCloud&& cloud);
 
 // A 4x4 matrix (row-major, as numpy shows Blender's matrix_world); None is the identity.
 Matrix4 matrix_from(const py::handle& value, const char* name);
+// A 1-d array of numbers (a curve's values); None is none.
+std::vector<float> floats_from(const py::handle& value, const char* name);
+// An (n, 4, 4) array of such matrices (motion steps); None is none.
+std::vector<Matrix4> matrices_from(const py::handle& value, const char* name);
 // 3 components, or 4 with the 4th (alpha, as in Blender's RGBA colours) ignored.
 std::array<float, 3> rgb_from(const py::handle& value, const char* name);
 
@@ -80,7 +84,8 @@ void apply_dict(const py::dict& dict, const ParameterTable<Target>& table, Targe
     }
 }
 
-// The camera of a dict of camera_parameters(), validated.
+// The camera of a dict of camera_parameters(), "motion" and "frame_motion" (Camera::motion and frame_motion as
+// (n, 4, 4) arrays) and "shutter_curve" (Camera::shutter_curve), validated.
 Camera camera_from(const py::dict& camera);
 // The settings of a dict of render_setting_parameters(), validated.
 RenderSettings settings_from(const py::dict& settings);

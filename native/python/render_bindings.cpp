@@ -182,6 +182,23 @@ struct RenderScene {
         shared.change()->set_gaussians_transform(index, matrix_from(matrix, "matrix"));
     }
 
+    void set_mesh_motion(std::uint32_t index, const py::object& matrices) {
+        shared.change()->set_mesh_motion(index, matrices_from(matrices, "matrices"));
+    }
+
+    void set_gaussians_motion(std::uint32_t index, const py::object& matrices) {
+        shared.change()->set_gaussians_motion(index, matrices_from(matrices, "matrices"));
+    }
+
+    void set_mesh_frame_motion(std::uint32_t index, const py::object& previous, const py::object& next) {
+        shared.change()->set_mesh_frame_motion(index, matrix_from(previous, "previous"), matrix_from(next, "next"));
+    }
+
+    void set_gaussians_frame_motion(std::uint32_t index, const py::object& previous, const py::object& next) {
+        shared.change()->set_gaussians_frame_motion(index, matrix_from(previous, "previous"),
+                                                     matrix_from(next, "next"));
+    }
+
     // `shading`: a name of gaussian_shading_names(), or None to follow the render setting gaussian_shading.
     void set_gaussian_shading(std::uint32_t index, const std::optional<std::string>& shading) {
         std::optional<raysplats::GaussianShading> value;
@@ -329,6 +346,16 @@ void register_render_bindings(py::module_& m) {
              "build recomputes only them and rebuilds only the chunks that hold them")
         .def("set_gaussians_matrix", &RenderScene::set_gaussians_matrix, "index"_a, "matrix"_a,
              "Moves Gaussian cloud `index`; the next build changes only instance transforms")
+        .def("set_mesh_motion", &RenderScene::set_mesh_motion, "index"_a, "matrices"_a,
+             "Motion blur: mesh `index`'s matrices (n, 4, 4) at equally spaced times from the shutter's opening to its "
+             "closing; None or fewer than 2: no motion")
+        .def("set_gaussians_motion", &RenderScene::set_gaussians_motion, "index"_a, "matrices"_a,
+             "Motion blur: Gaussian cloud `index`'s matrices (n, 4, 4) at equally spaced times from the shutter's "
+             "opening to its closing; None or fewer than 2: no motion")
+        .def("set_mesh_frame_motion", &RenderScene::set_mesh_frame_motion, "index"_a, "previous"_a, "next"_a,
+             "The Vector pass: mesh `index`'s matrices at the previous and the next frame")
+        .def("set_gaussians_frame_motion", &RenderScene::set_gaussians_frame_motion, "index"_a, "previous"_a, "next"_a,
+             "The Vector pass: Gaussian cloud `index`'s matrices at the previous and the next frame")
         .def("set_gaussian_shading", &RenderScene::set_gaussian_shading, "index"_a, "shading"_a = py::none(),
              "Gaussian cloud `index`'s own shading (BAKED, LIT, BAKED_SHADOWED), or None for the render setting "
              "gaussian_shading")

@@ -33,6 +33,11 @@ PRINCIPLED_VERSION = "V2" if _since(4, 0) else "V1"
 # 0.25 * invarea). Cycles 4.0 emits P / (pi A) (eval_fac = M_1_PI_F * invarea), so the same power is 4 / pi brighter.
 AREA_LIGHT_POWER_SCALE = 4.0 / np.pi if _since(4, 0) else 1.0
 
+# Motion blur's shutter position (Start, Center, End on Frame): Cycles' scene property (Scene.cycles) before 4.2,
+# Blender's RenderSettings.motion_blur_position since (EEVEE Next shares it); the switch and the shutter length were
+# RenderSettings' already.
+MOTION_BLUR_POSITION_IN_RENDER_SETTINGS = _has_property(bpy.types.RenderSettings, "motion_blur_position")
+
 # Blender 4.0 moved the panoramic camera settings (panorama_type, fisheye_fov, latitude_min, ...) from Cycles' camera
 # properties onto the Camera itself; before, RaySplats keeps its own copy of them (engine/render_properties.py).
 CAMERA_HAS_PANORAMA_SETTINGS = _has_property(bpy.types.Camera, "panorama_type")

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import native, progress
 from ..blender import denoiser
-from . import passes, sync
+from . import motion_blur, passes, sync
 
 POLL_SECONDS = 0.05
 # The render window shows a new image at most this often (and at most once per sample pass): a snapshot of a
@@ -98,13 +98,31 @@ def render_final(engine, depsgraph):
     engine.update_stats("", "Syncing scene")
     clock = progress.StageClock()
     t0 = time.perf_counter()
+    # Motion blur: the scene at the shutter's steps first, so that the frame's scene is read at the frame.
+    # The Vector pass (written, as by Cycles, only without motion blur): the previous and next frames' placements.
+    motion = frames = None
+    if scene.render.use_motion_blur:
+        with clock.stage("read"):
+            motion = motion_blur.shutter_motion(engine, depsgraph)
+    elif passes.vector_pass_enabled(depsgraph.view_layer):
+        with clock.stage("read"):
+            frames = motion_blur.frame_motion(engine, depsgraph)
     scene_sync, how = _frame_scene(engine, depsgraph, clock)
     render_scene, stats = scene_sync.render_scene, scene_sync.stats
+    scene_sync.apply_motion(motion)
+    if frames is not None:
+        scene_sync.apply_frame_motion(frames)
     t_sync = time.perf_counter() - t0
     engine.update_stats("", f"Splats {stats.splats:,} | Triangles {stats.triangles:,} | Building BVH")
     with clock.stage("bvh"):
         render_scene.build(settings.gaussian_mode)
     camera = sync.camera_settings(scene, scene.camera.evaluated_get(depsgraph), width, height)
+    if motion is not None and motion.camera is not None:
+        camera["motion"] = motion.camera
+    if motion is not None and motion.curve is not None:
+        camera["shutter_curve"] = motion.curve
+    if frames is not None and frames.camera is not None:
+        camera["frame_motion"] = frames.camera
     # The denoiser's guides are computed when the render denoises or writes them.
     render_settings = sync.render_settings(
         scene, width, height, settings.samples, adaptive=True,

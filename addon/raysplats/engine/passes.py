@@ -10,7 +10,7 @@ from ..blender import compat
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
                     "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
-                    "IndexMA": "use_pass_material_index", "Emit": "use_pass_emit",
+                    "IndexMA": "use_pass_material_index", "Vector": "use_pass_vector", "Emit": "use_pass_emit",
                     "DiffDir": "use_pass_diffuse_direct", "DiffInd": "use_pass_diffuse_indirect",
                     "DiffCol": "use_pass_diffuse_color", "GlossDir": "use_pass_glossy_direct",
                     "GlossInd": "use_pass_glossy_indirect", "GlossCol": "use_pass_glossy_color",
@@ -70,6 +70,11 @@ LIGHT_KEYS = frozenset(key for _, rows in LIGHT_PASS_LAYOUT for key, _ in rows)
 def light_passes_enabled(view_layer):
     """Whether the view layer writes a light pass (Emission, or a Diffuse, Glossy or Transmission one)."""
     return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in LIGHT_KEYS)
+
+
+def vector_pass_enabled(view_layer):
+    """Whether the view layer writes the Vector pass (whose motion the render then reads: final.py)."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] == "vector")
 
 
 def blender_name(channel):

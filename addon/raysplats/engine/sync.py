@@ -10,6 +10,7 @@ from .. import errors, native, progress
 from ..blender import compat, mesh_read
 from ..objects import color_adjustment, compact_points, polygon_mesh, splat_object
 from ..blender.material_reader import input_value
+from . import motion_blur
 from .material_table import MaterialTable
 from .render_properties import RaySplatsRenderSettings
 
@@ -193,6 +194,10 @@ class SceneSync:
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
         self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
         self.pass_indices = {}  # original object (drawn once) -> pass_indices() as given to the native scene
+        # Every native mesh and cloud as (motion_blur.instance_key, is a mesh, native index), and whether some have
+        # motion (apply_motion).
+        self.instances = []
+        self.has_motion = False
         self._build(depsgraph)
 
     @staticmethod
@@ -334,6 +339,7 @@ class SceneSync:
                                                        cloud["opacities"], cloud["sh"],
                                                        np.array(matrix, dtype=np.float32))
                 stats.splats += len(cloud["opacities"])
+                self.instances.append((motion_blur.instance_key(instance), False, index))
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
                 render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
                 if uid is None:
@@ -355,6 +361,7 @@ class SceneSync:
                     index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
                                                   face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index)
                 stats.triangles += len(triangles)
+                self.instances.append((motion_blur.instance_key(instance), True, index))
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
                     self.pass_indices[uid] = pass_indices(obj)
@@ -364,6 +371,32 @@ class SceneSync:
         self.materials = materials
         color, strength = _world(depsgraph.scene)
         render_scene.set_world(color, strength, **_world_mist(depsgraph.scene))
+
+    def apply_motion(self, motion):
+        """Gives each native mesh and cloud its object's motion across the shutter (a motion_blur.ShutterMotion, or
+        None), and takes back the motion an earlier frame gave. Nothing to do for a still scene that had none."""
+        objects = motion.objects if motion is not None else {}
+        if not objects and not self.has_motion:
+            return
+        for key, is_mesh, index in self.instances:
+            matrices = objects.get(key)
+            if is_mesh:
+                self.render_scene.set_mesh_motion(index, matrices)
+            else:
+                self.render_scene.set_gaussians_motion(index, matrices)
+        self.has_motion = bool(objects)
+
+    def apply_frame_motion(self, motion):
+        """Gives each native mesh and cloud its object's matrices at the previous and next frames (a
+        motion_blur.ShutterMotion of motion_blur.frame_motion), for the Vector pass."""
+        for key, is_mesh, index in self.instances:
+            matrices = motion.objects.get(key)
+            if matrices is None:
+                continue
+            if is_mesh:
+                self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
+            else:
+                self.render_scene.set_gaussians_frame_motion(index, matrices[0], matrices[1])
 
     def _mesh_arrays(self, obj, materials, mesh_cache):
         """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""

@@ -2,7 +2,7 @@
 import bpy
 
 from ..blender import compat, denoiser
-from . import color_management, passes
+from . import color_management, motion_blur, passes
 
 ENGINE = "RAYSPLATS"
 
@@ -128,6 +128,62 @@ class RAYSPLATS_RENDER_PT_light_paths(RaySplatsPanel, bpy.types.Panel):
         column.prop(context.scene.raysplats, "caustics_refractive", text="Refractive")
 
 
+class RAYSPLATS_RENDER_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
+    """Blender's motion blur settings as Cycles' Motion Blur panel draws them (Cycles' own panel cannot be declared
+    compatible: its engine set is shared by every Cycles panel). Final renders only, as in Cycles."""
+    bl_label = "Motion Blur"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.render, "use_motion_blur", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        render = context.scene.render
+        column = layout.column()
+        column.active = render.use_motion_blur
+        column.prop(motion_blur.position_settings(context.scene), "motion_blur_position", text="Position")
+        column.prop(render, "motion_blur_shutter")
+
+
+class RAYSPLATS_RENDER_PT_motion_blur_curve(RaySplatsPanel, bpy.types.Panel):
+    """The shutter curve, as Cycles' Shutter Curve subpanel draws it."""
+    bl_label = "Shutter Curve"
+    bl_parent_id = "RAYSPLATS_RENDER_PT_motion_blur"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        render = context.scene.render
+        self.layout.active = render.use_motion_blur
+        self.layout.template_curve_mapping(render, "motion_blur_shutter_curve")
+
+
+class RAYSPLATS_OBJECT_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
+    """An object's motion blur switch and steps (Object.cycles, the Cycles add-on's, which the engine reads as
+    Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation is not blurred (docs)."""
+    bl_label = "Motion Blur"
+    bl_context = "object"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.object
+        return super().poll(context) and obj is not None and hasattr(getattr(obj, "cycles", None), "motion_steps")
+
+    def draw_header(self, context):
+        self.layout.active = context.scene.render.use_motion_blur
+        self.layout.prop(context.object.cycles, "use_motion_blur", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.object.cycles
+        layout.active = context.scene.render.use_motion_blur and settings.use_motion_blur
+        layout.prop(settings, "motion_steps", text="Steps")
+
+
 class RAYSPLATS_RENDER_PT_performance(RaySplatsPanel, bpy.types.Panel):
     """Blender's own settings where Cycles shows them (Render Properties > Performance): the thread count of final
     renders and Persistent Data, which keeps the scene and its BVH from frame to frame (final.py)."""
@@ -245,7 +301,8 @@ class RAYSPLATS_VIEWLAYER_PT_passes_light(RaySplatsPanel, bpy.types.Panel):
 
 
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
-            RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
+            RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_motion_blur,
+            RAYSPLATS_RENDER_PT_motion_blur_curve, RAYSPLATS_OBJECT_PT_motion_blur, RAYSPLATS_RENDER_PT_performance,
             RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
             RAYSPLATS_RENDER_PT_other,
             RAYSPLATS_CAMERA_PT_panorama, RAYSPLATS_VIEWLAYER_PT_passes, RAYSPLATS_VIEWLAYER_PT_passes_light)

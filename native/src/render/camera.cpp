@@ -7,6 +7,8 @@
 #include <cmath>
 #include <string>
 
+#include <glm/gtc/quaternion.hpp>
+
 #include "raysplats/errors.h"
 #include "render_math.h"
 
@@ -99,11 +101,54 @@ void Camera::validate() const {
     require(aperture_fstop >= 0.0f, "aperture f-stop must be >= 0");
     require(aperture_blades >= 0, "aperture blades must be >= 0");
     require(aperture_ratio > 0.0f, "aperture ratio must be > 0");
+    require(motion.size() <= 129, "at most 129 motion steps");
+    for (std::size_t k = 0; k < motion.size(); ++k)
+        motion[k].check_affine(("camera motion step " + std::to_string(k)).c_str());
+    require(shutter_curve.empty() || shutter_curve.size() >= 2, "a shutter curve needs two values or more");
+    float curve_total = 0.0f;
+    for (float v : shutter_curve) {
+        require(finite(v) && v >= 0.0f, "shutter curve values must be finite and >= 0");
+        curve_total += v;
+    }
+    require(shutter_curve.empty() || curve_total > 0.0f, "the shutter curve is 0 throughout (never open)");
+    require(frame_motion.empty() || frame_motion.size() == 2,
+            "frame motion takes the previous and next frames' matrices (two)");
+    for (const Matrix4& m : frame_motion) m.check_affine("camera frame motion");
 }
 
 CameraRay generate_camera_ray(const Camera& c, int width, int height, float x, float y) {
     return CameraRayGenerator(c, width, height)(x, y);
 }
+
+namespace {
+
+// Cycles' shutter table (scene/camera.cpp, util_cdf_inverted with SHUTTER_TABLE_SIZE entries): the curve read
+// linearly between its values (shutter_curve_eval), integrated by the trapezoid rule on a fine grid, normalised,
+// and inverted at `entries` equally spaced values of u.
+std::vector<float> shutter_table(const std::vector<float>& curve, int entries) {
+    constexpr int kSteps = 4096;
+    auto eval = [&](float x) {
+        const float f = x * float(curve.size() - 1);
+        const std::size_t k = std::min(std::size_t(f), curve.size() - 2);
+        const float w = f - float(k);
+        return (1.0f - w) * curve[k] + w * curve[k + 1];
+    };
+    std::vector<double> cdf(kSteps + 1, 0.0);
+    for (int i = 1; i <= kSteps; ++i)
+        cdf[i] = cdf[i - 1] + 0.5 * (double(eval(float(i - 1) / kSteps)) + double(eval(float(i) / kSteps))) / kSteps;
+    std::vector<float> table(static_cast<std::size_t>(entries));
+    int i = 0;
+    for (int e = 0; e < entries; ++e) {
+        const double u = double(e) / (entries - 1) * cdf[kSteps];
+        while (i < kSteps && cdf[i + 1] < u) ++i;
+        const double span = cdf[std::min(i + 1, kSteps)] - cdf[i];
+        const double w = span > 0.0 ? (u - cdf[i]) / span : 0.0;
+        table[std::size_t(e)] = float((double(i) + std::min(1.0, std::max(0.0, w))) / kSteps);
+    }
+    return table;
+}
+
+}  // namespace
 
 CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
     : camera_(c), width_(float(width)), height_(float(height)) {
@@ -144,6 +189,58 @@ CameraRayGenerator::CameraRayGenerator(const Camera& c, int width, int height)
             forward_[i] = fw[i];
         }
     }
+    if (!c.shutter_curve.empty()) shutter_table_ = shutter_table(c.shutter_curve, 256);
+    if (c.motion.size() >= 2) {
+        for (const Matrix4& step : c.motion) {
+            glm::mat3 rotation = linear_part(step);
+            for (int k = 0; k < 3; ++k) rotation[k] = glm::normalize(rotation[k]);
+            const glm::quat q = glm::normalize(glm::quat_cast(rotation));
+            motion_.push_back({q.w, q.x, q.y, q.z, step(0, 3), step(1, 3), step(2, 3)});
+        }
+        const glm::mat3 inverse = glm::inverse(linear_part(c.camera_to_world));
+        const glm::vec3 t = -(inverse * translation_part(c.camera_to_world));
+        for (int r = 0; r < 3; ++r) {
+            for (int k = 0; k < 3; ++k) world_to_camera_[4 * r + k] = inverse[k][r];
+            world_to_camera_[4 * r + 3] = t[r];
+        }
+    }
+}
+
+float CameraRayGenerator::shutter_time(float u) const {
+    if (shutter_table_.empty()) return u;
+    // Cycles' lookup_table_read: linear between the table's entries.
+    const float f = u * float(shutter_table_.size() - 1);
+    const std::size_t k = std::min(std::size_t(f), shutter_table_.size() - 2);
+    const float w = f - float(k);
+    return (1.0f - w) * shutter_table_[k] + w * shutter_table_[k + 1];
+}
+
+CameraRay CameraRayGenerator::at_time(const CameraRay& ray, float time) const {
+    if (motion_.size() < 2 || !ray.valid) return ray;
+    // Cycles (util/transform.h, transform_motion_array_interpolate): between the two steps around `time`, the
+    // translation interpolated linearly and the rotation spherically (the shorter way).
+    const float f = std::min(std::max(time, 0.0f), 1.0f) * float(motion_.size() - 1);
+    const std::size_t k = std::min(std::size_t(f), motion_.size() - 2);
+    const float w = f - float(k);
+    const auto& a = motion_[k];
+    const auto& b = motion_[k + 1];
+    const glm::quat q = glm::slerp(glm::quat(a[0], a[1], a[2], a[3]), glm::quat(b[0], b[1], b[2], b[3]), w);
+    const glm::mat3 rotation = glm::mat3_cast(q);
+    const glm::vec3 translation = glm::mix(glm::vec3(a[4], a[5], a[6]), glm::vec3(b[4], b[5], b[6]), w);
+    const float* m = world_to_camera_;
+    auto to_camera = [m](const float v[3], float w1) {
+        return glm::vec3(m[0] * v[0] + m[1] * v[1] + m[2] * v[2] + w1 * m[3],
+                         m[4] * v[0] + m[5] * v[1] + m[6] * v[2] + w1 * m[7],
+                         m[8] * v[0] + m[9] * v[1] + m[10] * v[2] + w1 * m[11]);
+    };
+    const glm::vec3 o = rotation * to_camera(ray.origin, 1.0f) + translation;
+    const glm::vec3 d = glm::normalize(rotation * to_camera(ray.direction, 0.0f));
+    CameraRay moved = ray;
+    for (int i = 0; i < 3; ++i) {
+        moved.origin[i] = o[i];
+        moved.direction[i] = d[i];
+    }
+    return moved;
 }
 
 void CameraRayGenerator::aperture_point(float lens_u, float lens_v, float point[2]) const {

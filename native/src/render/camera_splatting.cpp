@@ -22,6 +22,8 @@ const char* CameraSplatting::traced_reason(const Scene::Impl& scene, const Rende
     if (camera.type != CameraType::Perspective) return "needs a perspective camera";
     if (CameraRayGenerator(camera, settings.width, settings.height).depth_of_field())
         return "needs a camera without depth of field";
+    // Its splats are projected once per frame: a camera or object moving during the shutter is not there.
+    if (camera.motion.size() >= 2 || scene.has_motion()) return "needs a scene without motion blur";
     for (const auto& set : scene.gaussians)
         if (shader.shading(set->index) != GaussianShading::Baked) return "needs every Gaussian object Baked";
     return nullptr;
@@ -74,7 +76,7 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
         // As GaussianSegmentTracer::gaussian_color: the lights' visibility v from the centre scales linear light.
         const SplatSource& source = prepass_.sources()[index];
         const float vis =
-            shadow_.gaussian_light_visibility(s_.gaussians[source.set]->world_center(source.prim), rng, c);
+            shadow_.gaussian_light_visibility(s_.gaussians[source.set]->world_center(source.prim), 0.0f, rng, c);
         if (st_.blend_space != BlendSpace::Display) color *= vis;
         else if (vis < 1.0f)
             for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(vis * srgb_to_linear(color[ch]));

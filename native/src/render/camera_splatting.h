@@ -24,9 +24,9 @@
 // rays then reads the lists of its own fine tile and of the coarse tile holding it once, for all 16 samples.
 //
 // Applies when the camera is perspective without depth of field (a thin lens's rays leave the aperture at many
-// points; the splats are a pinhole's projection) and every Gaussian cloud is BAKED (effective shading): LIT and
-// BAKED_SHADOWED Gaussians are shaded per hit point along the ray and cannot join a screen-space list, so a scene
-// holding any keeps every camera ray traced (CameraSplatting::applies, traced_reason). Secondary rays (reflections, refraction,
+// points; the splats are a pinhole's projection), nothing moves during the shutter (motion blur) and every
+// Gaussian cloud is BAKED (effective shading): LIT and BAKED_SHADOWED Gaussians are shaded per hit point along the
+// ray and cannot join a screen-space list, so a scene holding any keeps every camera ray traced (CameraSplatting::applies, traced_reason). Secondary rays (reflections, refraction,
 // shadows, a camera ray continuing through a semi-transparent mesh) are always traced, and so is a camera ray that
 // meets an area light in front of its mesh hit (or with none): the path integrator traces the part in front of the
 // light again, as it does for a traced first segment (PathIntegrator::trace_with_lights).
@@ -56,8 +56,9 @@ public:
     static bool applies(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                         const GaussianShader& shader);
     // Why it does not, though the setting is on, in the user's words ("needs a perspective camera", "needs a camera
-    // without depth of field", "needs every Gaussian object Baked"); null when it does or the setting is off. Its
-    // splats are a pinhole's projection: a thin lens's rays leave the aperture at many points.
+    // without depth of field", "needs a scene without motion blur", "needs every Gaussian object Baked"); null when
+    // it does or the setting is off. Its splats are one pinhole projection: a thin lens's rays leave the aperture at
+    // many points, and a moving object or camera is at many places during the shutter.
     static const char* traced_reason(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                                      const GaussianShader& shader);
 

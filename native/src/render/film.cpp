@@ -82,6 +82,9 @@ void denoising_albedo_of(const SampleRecord& s, float* out) {
 void denoising_normal_of(const SampleRecord& s, float* out) {
     out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
 }
+void vector_of(const SampleRecord& s, float* out) {
+    out[0] = s.vector[0], out[1] = s.vector[1], out[2] = s.vector[2], out[3] = s.vector[3];
+}
 
 bool is_light_pass(FilmChannel c) {
     return std::size_t(c) >= std::size_t(FilmChannel::Emission) &&
@@ -161,6 +164,10 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::TransmissionColor, "transmission_color", "TransCol", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
      "Transmission albedo of the surfaces the camera sees (needs light_passes; else 0)",
      light_of<LightPass::TransmissionColor>},
+    // Cycles' name and layout (XYZW: to the previous frame, then from the next), from the first sample as Position.
+    {FilmChannel::Vector, "vector", "Vector", "XYZW", "VECTOR", SampleCombination::FirstSample, 0.0f,
+     "Motion of the depth's point on the image to the previous frame (XY) and from the next (ZW), pixels, y up "
+     "(first sample; 0: none, or no camera frame motion)", vector_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample

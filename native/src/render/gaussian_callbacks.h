@@ -57,7 +57,7 @@ struct TraceContext : RTCIntersectContext {
 };
 
 // Lane l of a 16-ray packet set to the segment [ray.tmin, tfar] of `ray`, with no hit yet (the packet's other
-// fields as rtcIntersect16 wants them: every ray's mask, no motion time, the id of its LaneState).
+// fields as rtcIntersect16 wants them: every ray's mask, its motion time, the id of its LaneState).
 inline void set_packet_lane(RTCRayHit16& rh, int l, const Ray& ray, float tfar) {
     rh.ray.org_x[l] = ray.o.x;
     rh.ray.org_y[l] = ray.o.y;
@@ -67,7 +67,7 @@ inline void set_packet_lane(RTCRayHit16& rh, int l, const Ray& ray, float tfar) 
     rh.ray.dir_z[l] = ray.d.z;
     rh.ray.tnear[l] = ray.tmin;
     rh.ray.tfar[l] = tfar;
-    rh.ray.time[l] = 0.0f;
+    rh.ray.time[l] = ray.time;
     rh.ray.mask[l] = 0xffffffffu;
     rh.ray.id[l] = unsigned(l);
     rh.ray.flags[l] = 0;

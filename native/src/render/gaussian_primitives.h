@@ -14,6 +14,7 @@
 #include <embree3/rtcore.h>
 #include <glm/glm.hpp>
 
+#include "motion_vectors.h"
 #include "raysplats/default_init_allocator.h"
 #include "raysplats/gaussian_cloud.h"
 #include "raysplats/render/scene.h"
@@ -79,6 +80,8 @@ struct GaussianSet {
     std::uint32_t index = 0;  // in the scene
     const GaussianCloud* cloud = nullptr;
     Matrix4 object_to_world;
+    std::vector<Matrix4> motion;          // Scene::set_gaussians_motion's matrices (empty: none)
+    FrameMotion frame_motion;             // Scene::set_gaussians_frame_motion's (the Vector pass)
     glm::mat3 linear{1.0f};               // A
     glm::vec3 translation{0.0f};          // b
     glm::mat3 world_to_object_dir{1.0f};  // A^-1: world points and view directions into the cloud's frame

@@ -18,7 +18,7 @@ inline void GaussianSegmentTracer::init_rayhit(RTCRayHit& rh, const Ray& ray, fl
     rh.ray.dir_z = ray.d.z;
     rh.ray.tnear = tnear;
     rh.ray.tfar = ray.tmax;
-    rh.ray.time = 0.0f;
+    rh.ray.time = ray.time;
     rh.ray.mask = 0xffffffffu;
     rh.ray.id = 0;  // a single-ray query's state is lanes[0] of its TraceContext
     rh.ray.flags = 0;
@@ -56,6 +56,7 @@ inline void GaussianSegmentTracer::add_shaded(Segment& seg, const GaussianSet& s
     glm::vec3 n = set.world_normal(prim);
     if (glm::dot(n, ray.d) > 0.0f) n = -n;  // two-sided: the side the ray comes from
     sp.add(weight, ray.o + t * ray.d, n, GaussianShader::shadow_bias(set, prim), rng);
+    sp.time = ray.time;
 }
 
 // The colour Gaussian `prim` of `set` is composited with, in the settings' blend space (Segment::radiance): linear,
@@ -66,12 +67,13 @@ inline glm::vec3 GaussianSegmentTracer::gaussian_color(const GaussianSet& set, s
                                                        Sampler& rng, Counters& c) const {
     if (st_.blend_space == BlendSpace::Linear) {
         glm::vec3 color = set.color(prim, ray.o);
-        if (st_.meshes_shadow_gaussians) color *= shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+        if (st_.meshes_shadow_gaussians)
+            color *= shadow_.gaussian_light_visibility(set.world_center(prim), ray.time, rng, c);
         return color;
     }
     glm::vec3 color = set.display_color(prim, ray.o);
     if (st_.meshes_shadow_gaussians) {
-        const float v = shadow_.gaussian_light_visibility(set.world_center(prim), rng, c);
+        const float v = shadow_.gaussian_light_visibility(set.world_center(prim), ray.time, rng, c);
         if (v < 1.0f)
             for (int ch = 0; ch < 3; ++ch) color[ch] = linear_to_srgb(v * srgb_to_linear(color[ch]));
     }

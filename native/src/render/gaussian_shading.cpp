@@ -32,6 +32,7 @@ void GaussianShadingPoint::append_behind(const GaussianShadingPoint& behind, flo
         p = behind.p;
         n = behind.n;
         bias = behind.bias;
+        time = behind.time;
     }
 }
 
@@ -119,7 +120,7 @@ glm::vec3 GaussianShader::direct(const GaussianShadingPoint& sp, float bounce_pd
         const glm::vec3 side = cos_n >= 0.0f ? sp.n : -sp.n;
         const float remaining = ls.distance - sp.bias;
         const float vis = remaining > 0.0f
-                              ? shadow_.shadow(sp.p + side * eps + ls.wi * sp.bias, ls.wi, remaining, false, c)
+                              ? shadow_.shadow(sp.p + side * eps + ls.wi * sp.bias, ls.wi, remaining, sp.time, false, c)
                               : 1.0f;
         if (lights_lit && vis > 0.0f) {
             // Lambert: f = rho / pi; area lights share the estimate with the bounce ray (power heuristic).
@@ -149,7 +150,9 @@ Ray GaussianShader::bounce_ray(const GaussianShadingPoint& sp, Sampler& rng, flo
     pdf = cos_t * kInvPi;
     const float eps = 1e-4f * std::max(1.0f, std::max(std::abs(sp.p.x), std::max(std::abs(sp.p.y), std::abs(sp.p.z))));
     // As shadow rays: the Gaussian's neighbours within `bias` along the ray are its own surface.
-    return Ray{sp.p + sp.n * eps, wi, sp.bias, kInf};
+    Ray ray{sp.p + sp.n * eps, wi, sp.bias, kInf};
+    ray.time = sp.time;
+    return ray;
 }
 
 }  // namespace raysplats

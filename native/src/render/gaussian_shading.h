@@ -39,6 +39,7 @@ struct GaussianShadingPoint {
     glm::vec3 p{0.0f};             // the chosen Gaussian's hit point (world)
     glm::vec3 n{0.0f};             // its unit normal, facing the ray's origin
     float bias = 0.0f;             // how far along them shadow and bounce rays start (world units)
+    float time = 0.0f;             // the shutter time of the ray that reached them (Ray::time)
 
     bool empty() const { return !(weight > 0.0f); }
     bool lit() const { return albedo_sum.x > 0.0f || albedo_sum.y > 0.0f || albedo_sum.z > 0.0f; }

@@ -39,13 +39,14 @@ inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const
     const glm::vec3 v0 = vtx(idx[0]), v1 = vtx(idx[1]), v2 = vtx(idx[2]);
     Surface sf;
     sf.p = ray.o + seg.t * ray.d;
-    sf.ng = glm::normalize(m.normal_matrix * glm::cross(v1 - v0, v2 - v0));
+    const glm::mat3 normal_matrix = m.normal_matrix_at(ray.time);
+    sf.ng = glm::normalize(normal_matrix * glm::cross(v1 - v0, v2 - v0));
     const float b0 = 1.0f - seg.u - seg.v, b1 = seg.u, b2 = seg.v;
     sf.ns = sf.ng;
     if (m.desc.normals) {
         const float* n = m.desc.normals;
         auto nrm = [&](std::uint32_t i) { return glm::vec3(n[3 * i], n[3 * i + 1], n[3 * i + 2]); };
-        const glm::vec3 ni = m.normal_matrix * (b0 * nrm(idx[0]) + b1 * nrm(idx[1]) + b2 * nrm(idx[2]));
+        const glm::vec3 ni = normal_matrix * (b0 * nrm(idx[0]) + b1 * nrm(idx[1]) + b2 * nrm(idx[2]));
         const float len = glm::length(ni);
         if (len > 0.0f) sf.ns = ni / len;
         if (glm::dot(sf.ns, sf.ng) < 0.0f) sf.ns = -sf.ns;
@@ -113,6 +114,7 @@ struct PathIntegrator::PathState {
     glm::vec3 normal{0.0f};
     glm::vec3 position{0.0f};  // the data passes at the depth (SampleRecord)
     float object_index = 0.0f, material_index = 0.0f;
+    const FrameMotion* depth_motion = nullptr;  // how the depth's object moves between frames (the Vector pass)
     // The Mist pass's sum (SampleRecord::mist) and the camera ray's transmittance in front of the current segment
     // (surfaces it passed through stochastically).
     float mist_clearance = 0.0f, camera_transmittance = 1.0f;
@@ -242,6 +244,7 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
             p.normal_at_mesh = seg.depth_at_mesh;
             p.position = p.ray.o + seg.depth * p.ray.d;
             if (seg.depth_set) {
+                p.depth_motion = &seg.depth_set->frame_motion;
                 p.object_index = float(seg.depth_set->object_pass_index);
                 p.material_index = float(seg.depth_set->material_pass_index);
             }
@@ -345,7 +348,9 @@ void PathIntegrator::add_mesh_guides(PathState& p, const Segment& seg, const Sur
 // index and its face's material's.
 void PathIntegrator::mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const {
     p.position = sf.p;
-    p.object_index = float(s_.meshes[s_.top[seg.top_geom].index]->desc.pass_index);
+    const MeshRecord& mesh = *s_.meshes[s_.top[seg.top_geom].index];
+    p.object_index = float(mesh.desc.pass_index);
+    p.depth_motion = &mesh.frame_motion;
     p.material_index = s_.materials.empty() ? 0.0f : float(s_.materials[sf.material].pass_index);
     p.normal_at_mesh = false;
 }
@@ -383,7 +388,7 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
             p.camera_transmittance *= seg.transmittance;
             camera_distance = p.ray.camera_distance + seg.t;
         }
-        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf, camera_distance};
+        p.ray = Ray{sf.p - ng * eps, p.ray.d, 0.0f, kInf, camera_distance, p.ray.time};
         return true;
     }
     if (p.camera_segment) {
@@ -441,7 +446,7 @@ void PathIntegrator::add_direct_lighting(PathState& p, const Bsdf& bsdf, const g
         const glm::vec3 f = bsdf.eval(wo, ls.wi, pdf, st_.light_passes ? &f_diffuse : nullptr);
         const float cos_i = glm::dot(ns, ls.wi);
         if (cos_i <= 0.0f || (f.x <= 0.0f && f.y <= 0.0f && f.z <= 0.0f)) continue;
-        const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
+        const float vis = shadow_.shadow(p_out, ls.wi, ls.distance, p.ray.time, false, c);
         // Lights that rays can hit share the estimate with BSDF sampling (power heuristic).
         const float w = ls.pdf > 0.0f ? power_heuristic(ls.pdf, pdf) : 1.0f;
         if (vis > 0.0f) p.radiance += p.beta * f * cos_i * ls.value * (vis * w);
@@ -468,7 +473,7 @@ bool PathIntegrator::next_bounce(PathState& p, const Bsdf& bsdf, const glm::vec3
     }
     if (!next_vertex(p)) return false;
     const bool below = glm::dot(bs.wi, ng) < 0.0f;
-    p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf};
+    p.ray = Ray{hit_p + (below ? -ng : ng) * eps, bs.wi, 0.0f, kInf, -1.0f, p.ray.time};
     return true;
 }
 
@@ -523,6 +528,7 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.position = {p.position.x, p.position.y, p.position.z};
     record.object_index = p.object_index;
     record.material_index = p.material_index;
+    if (p.depth < kInf && vectors_.active()) record.vector = vectors_.vector(p.position, p.depth_motion);
     record.mist = 1.0f - p.mist_clearance;
     record.denoising_albedo = {p.guide_albedo.x, p.guide_albedo.y, p.guide_albedo.z};
     record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};

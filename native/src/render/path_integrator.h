@@ -10,6 +10,7 @@
 #include "bsdf.h"
 #include "gaussian_segment_tracer.h"
 #include "light_sampling.h"
+#include "motion_vectors.h"
 #include "ray.h"
 #include "raysplats/render/film.h"
 #include "raysplats/render/render_settings.h"
@@ -29,8 +30,8 @@ struct Surface {
 class PathIntegrator {
 public:
     PathIntegrator(const Scene::Impl& scene, const RenderSettings& settings, const GaussianSegmentTracer& tracer,
-                   const ShadowVisibility& shadow)
-        : s_(scene), st_(settings), tracer_(tracer), shadow_(shadow),
+                   const ShadowVisibility& shadow, const MotionVectorProjector& vectors)
+        : s_(scene), st_(settings), tracer_(tracer), shadow_(shadow), vectors_(vectors),
           world_(glm::vec3(scene.world.color[0], scene.world.color[1], scene.world.color[2]) * scene.world.strength) {}
 
     // One path from a camera ray: its radiance, and the coverage, depth and normal of the primary segment.
@@ -76,6 +77,7 @@ private:
     const RenderSettings& st_;
     const GaussianSegmentTracer& tracer_;
     const ShadowVisibility& shadow_;
+    const MotionVectorProjector& vectors_;
     glm::vec3 world_;
     const Material default_material_{};  // for meshes of a scene without materials
 };

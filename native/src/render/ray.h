@@ -17,6 +17,10 @@ struct Ray {
     // A camera ray (or its continuation through a surface it passed): the distance from the camera at t = 0, which
     // the Mist pass measures (mist.h). Negative for every other ray, which computes no mist.
     float camera_distance = -1.0f;
+    // Motion blur: when in the shutter the ray is traced, 0 at its opening and 1 at its closing (Embree's
+    // RTCRay::time, at which instances with time steps are placed). A camera ray draws it and every ray of its path
+    // keeps it; without motion it is 0 and nothing reads it.
+    float time = 0.0f;
 };
 
 // Per tile, summed into Film::stats: traversals, Gaussians composited, and the Gaussian / group tests the callbacks

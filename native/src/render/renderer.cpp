@@ -228,12 +228,14 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     }
     const ShadowVisibility shadow(impl, settings);
     const GaussianSegmentTracer tracer(impl, settings, shadow);
-    const PathIntegrator integrator(impl, settings, tracer, shadow);
+    const MotionVectorProjector vectors(camera, w, h);
+    const PathIntegrator integrator(impl, settings, tracer, shadow, vectors);
     const CameraRayGenerator camera_rays(camera, w, h);
     const PixelFilterSampler pixel_filter(settings.pixel_filter, settings.filter_width);
     const std::unique_ptr<const CameraSplatting> splatting =
         prepare_splatting(impl, settings, camera, tracer, shadow, cancel, film.stats);
-    const TileSampler sampler(settings, camera_rays, pixel_filter, tracer, splatting.get(), integrator, sampling);
+    const TileSampler sampler(settings, camera_rays, pixel_filter, tracer, splatting.get(), integrator, sampling,
+                              impl.has_motion());
     PassProgress pass_progress(progress, cancel, double(grid.count) * double(settings.samples));
     RenderCounters counters;
     std::vector<std::unique_ptr<TileState>> tiles(static_cast<std::size_t>(grid.count));

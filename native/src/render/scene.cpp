@@ -158,23 +158,55 @@ void validate_gaussians(const std::string& name, const GaussianCloud& cloud, con
     cloud.check_values(name);
 }
 
-// Instances `sub` in `top` with an object-to-world matrix; returns the instance's geomID. Every top-level geometry
-// is such an instance (one level: RTC_MAX_INSTANCE_LEVEL_COUNT is 1 in Debian's Embree), so a hit's instID[0] names
-// the mesh or Gaussian chunk, and the Gaussians' callbacks read it from their context (gaussian_callbacks.cpp).
-unsigned attach_instance(RTCDevice device, RTCScene top, RTCScene sub, const Matrix4& object_to_world) {
+// Places an instance: one transform, or with motion one per time step (Embree interpolates linearly between the two
+// steps around a ray's time, the first at time 0 and the last at time 1).
+void place_instance(RTCGeometry inst, const Matrix4& object_to_world, const std::vector<Matrix4>& motion) {
+    if (motion.size() < 2) {
+        rtcSetGeometryTimeStepCount(inst, 1);
+        rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, object_to_world.m.data());
+        return;
+    }
+    rtcSetGeometryTimeStepCount(inst, unsigned(motion.size()));
+    for (std::size_t k = 0; k < motion.size(); ++k)
+        rtcSetGeometryTransform(inst, unsigned(k), RTC_FORMAT_FLOAT3X4_ROW_MAJOR, motion[k].m.data());
+}
+
+// Instances `sub` in `top` with an object-to-world matrix (or its motion); returns the instance's geomID. Every
+// top-level geometry is such an instance (one level: RTC_MAX_INSTANCE_LEVEL_COUNT is 1 in Debian's Embree), so a
+// hit's instID[0] names the mesh or Gaussian chunk, and the Gaussians' callbacks read it from their context
+// (gaussian_callbacks.cpp). Embree hands user geometry inside an instance the ray in the instance's space at the
+// ray's time, so a Gaussian chunk moves with its instance like a mesh.
+unsigned attach_instance(RTCDevice device, RTCScene top, RTCScene sub, const Matrix4& object_to_world,
+                         const std::vector<Matrix4>& motion) {
     RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst, sub);
-    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, object_to_world.m.data());
+    place_instance(inst, object_to_world, motion);
     rtcCommitGeometry(inst);
     const unsigned id = rtcAttachGeometry(top, inst);
     rtcReleaseGeometry(inst);
     return id;
 }
 
-void set_instance_transform(RTCScene top, unsigned id, const Matrix4& object_to_world) {
+void set_instance_transform(RTCScene top, unsigned id, const Matrix4& object_to_world,
+                            const std::vector<Matrix4>& motion) {
     RTCGeometry inst = rtcGetGeometry(top, id);
-    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, object_to_world.m.data());
+    place_instance(inst, object_to_world, motion);
     rtcCommitGeometry(inst);
+}
+
+// Checks a motion's matrices (naming the object), and says whether they differ from `current`.
+bool check_motion(const std::string& name, const std::vector<Matrix4>& steps, const std::vector<Matrix4>& current) {
+    if (steps.size() > RTC_MAX_TIME_STEP_COUNT)
+        throw InvalidArgument(name + ": " + std::to_string(steps.size()) + " motion steps (at most " +
+                              std::to_string(RTC_MAX_TIME_STEP_COUNT) + ")");
+    for (std::size_t k = 0; k < steps.size(); ++k)
+        steps[k].check_affine((name + " motion step " + std::to_string(k)).c_str());
+    const bool none = steps.size() < 2, had_none = current.size() < 2;
+    if (none || had_none) return none != had_none;
+    if (steps.size() != current.size()) return true;
+    for (std::size_t k = 0; k < steps.size(); ++k)
+        if (steps[k].m != current[k].m) return true;
+    return false;
 }
 
 void set_triangle_buffers(RTCGeometry tri, const MeshRecord& m) {
@@ -199,6 +231,8 @@ void Scene::update_mesh(std::uint32_t index, const MeshDesc& mesh) {
     if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
     auto rec = make_mesh_record(at("mesh", index), mesh);
     rec->sub_scene = impl_->meshes[index]->sub_scene;
+    rec->motion = impl_->meshes[index]->motion;
+    rec->motion_linear = impl_->meshes[index]->motion_linear;
     rec->top_geom_id = impl_->meshes[index]->top_geom_id;
     rec->dirty = true;
     impl_->meshes[index] = std::move(rec);
@@ -221,6 +255,7 @@ void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, co
     GaussianSet& set = *impl_->gaussians[index];
     set.cloud = &cloud;
     set.set_transform(object_to_world);
+    set.frame_motion = FrameMotion{};
     set.dirty = GaussianSet::Dirty::Data;
 }
 
@@ -244,6 +279,7 @@ void Scene::set_gaussians_transform(std::uint32_t index, const Matrix4& object_t
     object_to_world.check_affine((at("Gaussian cloud", index) + " object_to_world").c_str());
     GaussianSet& set = *impl_->gaussians[index];
     set.set_transform(object_to_world);
+    set.frame_motion = FrameMotion{};
     if (set.dirty == GaussianSet::Dirty::None) set.dirty = GaussianSet::Dirty::Transform;
 }
 
@@ -258,6 +294,51 @@ void Scene::set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_
     impl_->gaussians[index]->object_pass_index = object_pass_index;
     impl_->gaussians[index]->material_pass_index = material_pass_index;
 }
+
+void Scene::set_mesh_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    MeshRecord& m = *impl_->meshes[index];
+    if (!check_motion(at("mesh", index), object_to_world_steps, m.motion)) return;
+    m.motion.clear();
+    m.motion_linear.clear();
+    if (object_to_world_steps.size() >= 2) {
+        m.motion = object_to_world_steps;
+        for (const Matrix4& step : m.motion) m.motion_linear.push_back(linear_part(step));
+    }
+    impl_->built = false;
+}
+
+void Scene::set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    GaussianSet& set = *impl_->gaussians[index];
+    if (!check_motion(at("Gaussian cloud", index), object_to_world_steps, set.motion)) return;
+    set.motion.clear();
+    if (object_to_world_steps.size() >= 2) set.motion = object_to_world_steps;
+    impl_->built = false;
+}
+
+void Scene::set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    previous.check_affine((at("mesh", index) + " previous frame's matrix").c_str());
+    next.check_affine((at("mesh", index) + " next frame's matrix").c_str());
+    MeshRecord& m = *impl_->meshes[index];
+    m.frame_motion = FrameMotion::between(m.desc.object_to_world, previous, next);
+}
+
+void Scene::set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    previous.check_affine((at("Gaussian cloud", index) + " previous frame's matrix").c_str());
+    next.check_affine((at("Gaussian cloud", index) + " next frame's matrix").c_str());
+    GaussianSet& set = *impl_->gaussians[index];
+    set.frame_motion = FrameMotion::between(set.object_to_world, previous, next);
+}
+
+bool Scene::Impl::has_motion() const {
+    return std::any_of(meshes.begin(), meshes.end(), [](const auto& m) { return !m->motion.empty(); }) ||
+           std::any_of(gaussians.begin(), gaussians.end(), [](const auto& g) { return !g->motion.empty(); });
+}
+
+bool Scene::has_motion() const { return impl_->has_motion(); }
 
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());
@@ -314,7 +395,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
         rtcAttachGeometry(m.sub_scene, tri);
         rtcReleaseGeometry(tri);
         rtcCommitScene(m.sub_scene);
-        m.top_geom_id = attach_instance(device, scene, m.sub_scene, m.desc.object_to_world);
+        m.top_geom_id = attach_instance(device, scene, m.sub_scene, m.desc.object_to_world, m.motion);
         m.dirty = false;
         ++report.meshes;
         record_top(m.top_geom_id, TopGeometry{TopGeometry::Mesh, std::uint32_t(mi)});
@@ -341,7 +422,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
             rtcAttachGeometry(c.scene, c.geometry);
             rtcReleaseGeometry(c.geometry);  // the chunk's scene holds it
             rtcCommitScene(c.scene);
-            c.instance_id = attach_instance(device, scene, c.scene, g.object_to_world);
+            c.instance_id = attach_instance(device, scene, c.scene, g.object_to_world, g.motion);
             record_top(c.instance_id, TopGeometry{TopGeometry::Gaussians, std::uint32_t(gi), c.offset});
             ++report.gaussian_chunks;
         }
@@ -362,7 +443,7 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
         set_triangle_buffers(tri, m);
         rtcCommitGeometry(tri);
         rtcCommitScene(m.sub_scene);
-        set_instance_transform(scene, m.top_geom_id, m.desc.object_to_world);
+        set_instance_transform(scene, m.top_geom_id, m.desc.object_to_world, m.motion);
         m.dirty = false;
         ++report.meshes;
     }
@@ -382,7 +463,8 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
             }
         }
         if (g.dirty != GaussianSet::Dirty::None)
-            for (const GaussianChunk& c : g.chunks) set_instance_transform(scene, c.instance_id, g.object_to_world);
+            for (const GaussianChunk& c : g.chunks)
+                set_instance_transform(scene, c.instance_id, g.object_to_world, g.motion);
         g.dirty = GaussianSet::Dirty::None;
         g.changed_rows.clear();
     }

@@ -1,6 +1,7 @@
 // Scene internals shared by scene.cpp and renderer.cpp.
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,8 +24,21 @@ struct MeshRecord {
     RTCScene sub_scene = nullptr;   // every mesh is instanced, so that moving or editing it rebuilds only its BVH
     unsigned top_geom_id = RTC_INVALID_GEOMETRY_ID;
     bool dirty = false;             // replaced by Scene::update_mesh since the last build
+    // Scene::set_mesh_motion's matrices (empty: none), and their linear parts for the normals at a ray's time.
+    std::vector<Matrix4> motion;
+    std::vector<glm::mat3> motion_linear;
+    FrameMotion frame_motion;  // Scene::set_mesh_frame_motion's (the Vector pass)
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
+    // The normal matrix where a ray of shutter time `time` sees the mesh: with motion, the inverse transpose of the
+    // linear part Embree's linear interpolation of the two nearest steps gives; else normal_matrix.
+    glm::mat3 normal_matrix_at(float time) const {
+        if (motion_linear.empty()) return normal_matrix;
+        const float f = glm::clamp(time, 0.0f, 1.0f) * float(motion_linear.size() - 1);
+        const std::size_t k = std::min(std::size_t(f), motion_linear.size() - 2);
+        const float w = f - float(k);
+        return glm::transpose(glm::inverse((1.0f - w) * motion_linear[k] + w * motion_linear[k + 1]));
+    }
 };
 
 // What a top-level geomID (always an instance) is: a mesh, or a chunk of a Gaussian set whose primitives start at
@@ -55,6 +69,8 @@ struct Scene::Impl {
     GaussianMode built_mode = GaussianMode::Flat;
     std::vector<TopGeometry> top;  // by top-level geomID
 
+    // Whether some mesh or Gaussian cloud has motion (Scene::has_motion).
+    bool has_motion() const;
     void release_scene();
     void build_all(GaussianMode mode);
     // Rebuilds what update_* marked; false when a change needs build_all (a Gaussian count changed).

@@ -7,7 +7,8 @@
 
 namespace raysplats {
 
-float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dist, bool meshes_only, Counters& c) const {
+float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dist, float time, bool meshes_only,
+                              Counters& c) const {
     LaneState L;
     L.transmittance_threshold = st_.transmittance_threshold;
     TraceContext ctx(&L, 1, meshes_only ? TraceMode::MeshesOnly : TraceMode::Transmittance);
@@ -20,7 +21,7 @@ float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dis
     ray.dir_z = d.z;
     ray.tnear = 0.0f;
     ray.tfar = std::isfinite(dist) ? dist * (1.0f - 1e-4f) : kInf;
-    ray.time = 0.0f;
+    ray.time = time;
     ray.mask = 0xffffffffu;
     ray.id = 0;
     ray.flags = 0;
@@ -32,7 +33,7 @@ float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dis
     return L.transmittance;
 }
 
-float ShadowVisibility::gaussian_light_visibility(const glm::vec3& p, Sampler& rng, Counters& c) const {
+float ShadowVisibility::gaussian_light_visibility(const glm::vec3& p, float time, Sampler& rng, Counters& c) const {
     if (s_.lights.empty()) return 1.0f;
     float total = 0.0f, visible = 0.0f;
     for (const Light& l : s_.lights) {
@@ -41,7 +42,7 @@ float ShadowVisibility::gaussian_light_visibility(const glm::vec3& p, Sampler& r
         const float e = luminance(ls.value);
         if (!(e > 0.0f)) continue;
         total += e;
-        visible += e * shadow(p, ls.wi, ls.distance, true, c);
+        visible += e * shadow(p, ls.wi, ls.distance, time, true, c);
     }
     return total > 0.0f ? visible / total : 1.0f;
 }

@@ -15,11 +15,12 @@ class ShadowVisibility {
 public:
     ShadowVisibility(const Scene::Impl& scene, const RenderSettings& settings) : s_(scene), st_(settings) {}
 
-    // Visibility of a light sample: Gaussian transmittance x mesh occlusion (meshes_only: meshes alone).
-    float shadow(const glm::vec3& o, const glm::vec3& d, float dist, bool meshes_only, Counters& c) const;
+    // Visibility of a light sample: Gaussian transmittance x mesh occlusion (meshes_only: meshes alone). `time`:
+    // the shutter time of the path it shades (Ray::time).
+    float shadow(const glm::vec3& o, const glm::vec3& d, float dist, float time, bool meshes_only, Counters& c) const;
 
     // Fraction of the lights' unshadowed irradiance that reaches a Gaussian centre past the meshes.
-    float gaussian_light_visibility(const glm::vec3& p, Sampler& rng, Counters& c) const;
+    float gaussian_light_visibility(const glm::vec3& p, float time, Sampler& rng, Counters& c) const;
 
 private:
     const Scene::Impl& s_;

@@ -42,10 +42,11 @@ struct TileSampler::Packet {
 TileSampler::TileSampler(const RenderSettings& settings, const CameraRayGenerator& camera_rays,
                          const PixelFilterSampler& pixel_filter, const GaussianSegmentTracer& tracer,
                          const CameraSplatting* splatting, const PathIntegrator& integrator,
-                         const std::vector<std::uint8_t>& sampling)
+                         const std::vector<std::uint8_t>& sampling, bool object_motion)
     : st_(settings), camera_rays_(camera_rays), pixel_filter_(pixel_filter), tracer_(tracer), splatting_(splatting),
       integrator_(integrator), sampling_(sampling),
-      speculate_(settings.speculative_ends && settings.compositing == Compositing::Sorted) {}
+      speculate_(settings.speculative_ends && settings.compositing == Compositing::Sorted),
+      motion_(object_motion || camera_rays.motion()) {}
 
 bool TileSampler::samples(const TileState& tile) const {
     if (sampling_.empty()) return true;
@@ -91,6 +92,13 @@ std::uint64_t TileSampler::start_packet(TileState& tile, Packet& packet) const {
         } else {
             cr = camera_rays_(x + jx, y + jy);
         }
+        // Motion blur: the ray's shutter time is the stream's next number, through the shutter curve (none is drawn
+        // in a still scene, so its samples keep their numbers).
+        float time = 0.0f;
+        if (motion_) {
+            time = camera_rays_.shutter_time(rng.next());
+            cr = camera_rays_.at_time(cr, time);
+        }
         if (!cr.valid) {
             tile.samples.add_empty_sample(x, y);
             ++empty;
@@ -100,7 +108,7 @@ std::uint64_t TileSampler::start_packet(TileState& tile, Packet& packet) const {
                              glm::vec3(cr.direction[0], cr.direction[1], cr.direction[2]), cr.t_min, cr.t_max,
                              // Every camera model starts its rays at the camera (an orthographic camera's on its
                              // plane) with unit directions: t is the distance Cycles' camera_distance() gives.
-                             0.0f};
+                             0.0f, time};
         packet.active[l] = packet.any = true;
     }
     return empty;

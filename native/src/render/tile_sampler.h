@@ -33,11 +33,12 @@ class TileSampler {
 public:
     // `splatting`: camera-ray splatting's pre-pass when it draws the camera rays' first segments, else null.
     // `sampling`: adaptive sampling's mask over the image's pixels (1: the pixel still takes samples; empty without
-    // adaptive sampling), which render() updates between passes.
+    // adaptive sampling), which render() updates between passes. `object_motion`: some object of the scene moves
+    // during the shutter (Scene::has_motion); then, or when the camera moves, each camera ray draws its time.
     TileSampler(const RenderSettings& settings, const CameraRayGenerator& camera_rays,
                 const PixelFilterSampler& pixel_filter, const GaussianSegmentTracer& tracer,
                 const CameraSplatting* splatting, const PathIntegrator& integrator,
-                const std::vector<std::uint8_t>& sampling);
+                const std::vector<std::uint8_t>& sampling, bool object_motion);
 
     // Whether any pixel of the tile still takes samples.
     bool samples(const TileState& tile) const;
@@ -66,6 +67,7 @@ private:
     // Not in stochastic mode: a segment ends at a random accepted Gaussian, which its neighbours' do not predict
     // (on showroom_1.5M the frame was slower at every margin tried).
     bool speculate_;
+    bool motion_;  // camera rays draw a shutter time
 };
 
 }  // namespace raysplats

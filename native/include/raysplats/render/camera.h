@@ -3,7 +3,12 @@
 // Depth of field is Cycles' thin lens for every model (Camera.dof in Blender): a ray leaves a point of the aperture
 // (a disc, or a polygon of `aperture_blades` sides, its width divided by `aperture_ratio`) and passes through the
 // point its pinhole ray reaches at the focus distance, so what lies there is sharp and the rest is blurred.
+// Motion blur moves the camera across the shutter (`motion`): a ray of shutter time t is the ray of the camera placed
+// at t, as Cycles places it (translation interpolated linearly, rotation spherically).
 #pragma once
+
+#include <array>
+#include <vector>
 
 #include "raysplats/render/transform.h"
 
@@ -61,9 +66,23 @@ struct Camera {
     // Anamorphic bokeh: the aperture's extent along the camera's X axis is divided by the ratio.
     float aperture_ratio = 1.0f;
 
+    // Motion blur: camera_to_world at equally spaced times across the shutter, from its opening (the first) to its
+    // closing (the last), each a rotation and a translation (a scale is dropped, as Blender's normalized
+    // matrix_world drops it); fewer than two: a still camera. camera_to_world remains the frame's placement, which
+    // the rays of every time are moved from.
+    std::vector<Matrix4> motion;
+    // Motion blur's shutter curve (Blender's render.motion_blur_shutter_curve): how open the shutter is at equally
+    // spaced times from its opening to its closing (two values or more, >= 0, not all 0); a ray's time is drawn with
+    // that density, through the inverse of its integral as Cycles tabulates it. Empty: fully open throughout.
+    std::vector<float> shutter_curve;
+    // The Vector pass: camera_to_world at the previous and at the next frame (two matrices), or none (the pass is
+    // then 0), as Cycles' motion pass takes the camera's (perspective and orthographic cameras).
+    std::vector<Matrix4> frame_motion;
+
     // Throws InvalidArgument for NaN/Inf, non-positive lens/sensor/scale, clip_end <= clip_start, a camera
-    // matrix that is not affine, or empty angle ranges, a non-positive aperture ratio, a negative f-stop, focus
-    // distance or blade count.
+    // matrix (or a motion step) that is not affine, more than 129 motion steps, a frame_motion other than two
+    // matrices, a shutter curve of one value, negative or all 0, or empty angle ranges, a non-positive aperture
+    // ratio, a negative f-stop, focus distance or blade count.
     void validate() const;
 };
 
@@ -98,6 +117,15 @@ public:
     // panoramic cameras, along the frame the thin-lens ray builds around each direction).
     void aperture_point(float lens_u, float lens_v, float point[2]) const;
 
+    // Whether the camera moves during the shutter (Camera::motion).
+    bool motion() const { return motion_.size() >= 2; }
+    // `ray` (of the camera at camera_to_world) as the camera placed at shutter time `time` in [0, 1] casts it: moved
+    // rigidly from camera_to_world to the interpolated placement. The same ray without motion.
+    CameraRay at_time(const CameraRay& ray, float time) const;
+    // The shutter time of a uniform number u in [0, 1): u itself, or with a shutter curve the inverse of its
+    // normalised integral at u (Camera::shutter_curve).
+    float shutter_time(float u) const;
+
     // Perspective: the pinhole projection these rays invert. A camera-space point (X, Y, Z) (looking down -Z) at
     // depth z = -Z lies at image position x = cx + fx X / z, y = cy - fy Y / z, in the pixel units above.
     struct PinholeProjection {
@@ -122,6 +150,11 @@ private:
     float focus_distance_ = 0.0f;
     int blades_ = 0;
     float axis_x_[3] = {1, 0, 0}, axis_y_[3] = {0, 1, 0}, forward_[3] = {0, 0, -1};
+    // Motion: each step's rotation (a unit quaternion w x y z) and translation, and camera_to_world's inverse
+    // (row-major 3 x 4) that takes the frame's rays back to the camera's own space.
+    std::vector<std::array<float, 7>> motion_;
+    std::vector<float> shutter_table_;  // the shutter curve's inverse CDF at equally spaced u (empty: none)
+    float world_to_camera_[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
 };
 
 }  // namespace raysplats

@@ -89,6 +89,11 @@ struct SampleRecord {
     // Display blend space: the part of light[Emission] in front of the camera ray's first run (area lights seen
     // there); the film attenuates the rest as the display blend attenuates what lies behind the run.
     std::array<float, 3> front_emission{0.0f, 0.0f, 0.0f};
+    // The Vector pass (Cycles' motion pass, kernel/geom/primitive.h): the motion on the image, in pixels with y
+    // growing up, of the point at `depth` from the previous frame and to the next, (pre.x, pre.y, post.x, post.y) =
+    // (raster(previous) - raster(now), raster(now) - raster(next)); 0 where there is no surface, or where the camera
+    // has no frame motion (Camera::frame_motion) or is panoramic (src/render/motion_vectors.h).
+    std::array<float, 4> vector{0.0f, 0.0f, 0.0f, 0.0f};
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
@@ -98,9 +103,9 @@ enum class FilmChannel : std::uint8_t {
     Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex,
     DenoisingAlbedo, DenoisingNormal,
     Emission, DiffuseDirect, DiffuseIndirect, DiffuseColor, GlossyDirect, GlossyIndirect, GlossyColor,
-    TransmissionDirect, TransmissionIndirect, TransmissionColor
+    TransmissionDirect, TransmissionIndirect, TransmissionColor, Vector
 };
-constexpr std::size_t kFilmChannelCount = 22;
+constexpr std::size_t kFilmChannelCount = 23;
 
 
 // How a channel combines the samples of a pixel.

@@ -108,6 +108,23 @@ public:
     // is needed.
     void set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_pass_index,
                                    std::uint32_t material_pass_index);
+    // Motion blur: the object-to-world matrices of mesh or Gaussian cloud `index` at equally spaced times across the
+    // shutter, from its opening (the first) to its closing (the last), at most 129 (Embree's limit). A ray of time
+    // t in [0, 1] (a camera ray draws it) sees the object where Embree places its instance, interpolating the two
+    // nearest matrices linearly (rtcSetGeometryTransform per time step); shading uses the same interpolation for a
+    // mesh's normals and the frame's matrix (the object_to_world of add_* / update_*) for a Gaussian's view
+    // direction and normal. Empty (or one matrix): no motion, the object stays where object_to_world puts it.
+    // Validated as object_to_world; a change of motion makes the next build a full one.
+    void set_mesh_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
+    void set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
+    // The Vector pass: where mesh or Gaussian cloud `index` was at the previous frame and will be at the next (its
+    // object_to_world then), for the motion of its surface points (film.h, SampleRecord::vector); an object without
+    // them is still. Forgotten when the object's matrix or data is replaced (update_*, set_gaussians_transform). No
+    // rebuild is needed.
+    void set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
+    void set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
+    // Whether some object has motion (set_*_motion with two matrices or more).
+    bool has_motion() const;
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).

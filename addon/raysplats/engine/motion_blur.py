@@ -1,0 +1,163 @@
+# Motion blur in final renders: where each object and the camera are across the shutter; and for the Vector pass
+# (motion blur off, as Cycles writes it), where they are at the previous and the next frame. Blender's own settings, as
+# Cycles reads them (intern/cycles/blender/sync.cpp, object.cpp, util.h): Render Properties > Motion Blur
+# (`render.use_motion_blur`, `motion_blur_shutter` in frames, `motion_blur_position`, Scene.cycles' before 4.2,
+# the shutter curve) and each object's `Object.cycles.use_motion_blur` and `motion_steps` (Object Properties > Motion
+# Blur; the Cycles add-on defines them, and an object without them blurs with one step, their defaults). The scene is evaluated at each step's time
+# with RenderEngine.frame_set and put back at the frame afterwards, as Cycles' sync_motion does.
+import math
+
+import numpy as np
+
+from ..blender import compat
+
+# Where the shutter's interval lies around the frame (Cycles: frame_center_delta of sync_motion): the interval's
+# centre is the frame plus this many shutters.
+_CENTRE_OFFSET = {"START": 0.5, "CENTER": 0.0, "END": -0.5}
+
+
+class ShutterMotion:
+    """What moves during the shutter: `objects` maps an instance_key to the object's matrix_world at its motion
+    steps (an (n, 4, 4) float32 array, from the shutter's opening to its closing) for every object that moves;
+    `camera` is the camera's normalized matrix_world at its steps, or None when it is still; `curve` the shutter
+    curve (shutter_curve), or None."""
+
+    def __init__(self, objects, camera, curve=None):
+        self.objects, self.camera, self.curve = objects, camera, curve
+
+
+# Values of the shutter curve handed to the core: Cycles' RAMP_TABLE_SIZE (blender/curves.cpp, curvemapping_to_array).
+SHUTTER_CURVE_VALUES = 256
+
+
+def shutter_curve(render):
+    """Render Properties > Motion Blur > Shutter Curve (render.motion_blur_shutter_curve) at SHUTTER_CURVE_VALUES
+    equally spaced times across the shutter, as Cycles samples it; None when it is flat (Blender's default: the
+    shutter fully open throughout), which the core draws uniformly."""
+    mapping = render.motion_blur_shutter_curve
+    mapping.initialize()
+    curve = mapping.curves[0]
+    values = np.array([mapping.evaluate(curve, i / (SHUTTER_CURVE_VALUES - 1)) for i in range(SHUTTER_CURVE_VALUES)],
+                      dtype=np.float32)
+    # A curve drawn below 0 (an unclipped curve, or rounding at a closed end) is a closed shutter there.
+    values = np.maximum(values, 0.0)
+    return None if np.all(values == values[0]) else values
+
+
+def position_settings(scene):
+    """What holds motion_blur_position (Start, Center or End on Frame): the scene's render settings, or before 4.2
+    Cycles' scene settings."""
+    return scene.render if compat.MOTION_BLUR_POSITION_IN_RENDER_SETTINGS else scene.cycles
+
+
+def instance_key(instance):
+    """The identity of a depsgraph object instance that stays the same across frame_set calls: the original
+    object, and for an instance its instancer and persistent id."""
+    obj = instance.object
+    if instance.is_instance:
+        return obj.original.as_pointer(), instance.parent.original.as_pointer(), tuple(instance.persistent_id)
+    return (obj.original.as_pointer(),)
+
+
+def _object_settings(obj):
+    """(use_motion_blur, motion_steps) of an object: Object.cycles' (Object Properties > Motion Blur), or the
+    defaults (on, 1) where the Cycles add-on is not there to define them."""
+    settings = getattr(obj, "cycles", None)
+    if settings is None or not hasattr(settings, "use_motion_blur"):
+        return True, 1
+    return bool(settings.use_motion_blur), max(1, int(settings.motion_steps))
+
+
+def motion_step_count(obj, parent=None):
+    """How many times an object is placed across the shutter, Cycles' object_motion_steps: 0 when its motion blur
+    (or its instancer's) is off, else 2^steps + 1 (an odd count, so one is the interval's centre, and a power of two
+    apart, so objects of different step counts share their times)."""
+    use, steps = _object_settings(obj)
+    if parent is not None and parent != obj:
+        parent_use, parent_steps = _object_settings(parent)
+        use, steps = use and parent_use, max(steps, parent_steps)
+    return (2 << (steps - 1)) + 1 if use else 0
+
+
+def _step_times(centre, shutter, count):
+    """The frame times of `count` equally spaced steps across the shutter [centre - shutter/2, centre + shutter/2]."""
+    return [centre + shutter * (k / (count - 1) - 0.5) for k in range(count)]
+
+
+def _moving(matrices):
+    return matrices is not None and any(not np.array_equal(m, matrices[0]) for m in matrices[1:])
+
+
+def _placements(engine, depsgraph, times, keys, camera):
+    """{(instance key, time): matrix_world} of the instances whose keys are in `keys`, and {("camera", time): the
+    camera's normalized matrix_world} when `camera`, at each frame time of `times` (engine.frame_set); the frame is
+    set back (its subframe too) before returning."""
+    scene = depsgraph.scene
+    frame, subframe = scene.frame_current, float(scene.frame_subframe)
+    placed = {}
+    try:
+        for time in times:
+            whole = math.floor(time)
+            engine.frame_set(whole, time - whole)
+            for instance in depsgraph.object_instances:
+                key = instance_key(instance)
+                if key in keys:
+                    placed[key, time] = np.array(instance.matrix_world, dtype=np.float32)
+            if camera:
+                placed["camera", time] = np.array(scene.camera.evaluated_get(depsgraph).matrix_world.normalized(),
+                                                  dtype=np.float32)
+    finally:
+        engine.frame_set(frame, subframe)
+    return placed
+
+
+def frame_motion(engine, depsgraph):
+    """The Vector pass's motion: a ShutterMotion whose matrices are each object's and the camera's at the previous
+    and the next frame (Cycles' motion pass, MOTION_PASS: the frame before and after, whatever the shutter), for every
+    object drawn at both; the camera's even when still (the pass projects through it)."""
+    scene = depsgraph.scene
+    time = scene.frame_current + float(scene.frame_subframe)
+    keys = {instance_key(instance) for instance in depsgraph.object_instances}
+    placed = _placements(engine, depsgraph, (time - 1.0, time + 1.0), keys, scene.camera is not None)
+    objects = {}
+    for key in keys:
+        if (key, time - 1.0) in placed and (key, time + 1.0) in placed:
+            objects[key] = np.stack((placed[key, time - 1.0], placed[key, time + 1.0]))
+    camera = np.stack((placed["camera", time - 1.0], placed["camera", time + 1.0])) if scene.camera else None
+    return ShutterMotion(objects, camera)
+
+
+def shutter_motion(engine, depsgraph):
+    """The ShutterMotion of the frame (None when Motion Blur is off). Evaluates the scene at every step's time with
+    engine.frame_set and sets the frame back (its subframe too) before returning, so the depsgraph is the frame's
+    again."""
+    scene = depsgraph.scene
+    render = scene.render
+    if not render.use_motion_blur:
+        return None
+    shutter = float(render.motion_blur_shutter)
+    frame, subframe = scene.frame_current, float(scene.frame_subframe)
+    centre = frame + subframe + _CENTRE_OFFSET[position_settings(scene).motion_blur_position] * shutter
+    # Which times each object and the camera need (rounded, so that objects of different step counts share them).
+    wanted = {}
+    for instance in depsgraph.object_instances:
+        count = motion_step_count(instance.object.original,
+                                  instance.parent.original if instance.is_instance else None)
+        if count:
+            wanted[instance_key(instance)] = count
+    camera_count = motion_step_count(scene.camera.original) if scene.camera is not None else 0
+    times = sorted({round(t, 9) for count in set(wanted.values()) | ({camera_count} - {0})
+                    for t in _step_times(centre, shutter, count)})
+    placed = _placements(engine, depsgraph, times, wanted, camera_count > 0)
+
+    def steps(key, count):
+        matrices = [placed.get((key, round(t, 9))) for t in _step_times(centre, shutter, count)]
+        return None if any(m is None for m in matrices) else np.stack(matrices)
+
+    objects = {}
+    for key, count in wanted.items():
+        matrices = steps(key, count)
+        if _moving(matrices):
+            objects[key] = matrices
+    camera = steps("camera", camera_count) if camera_count else None
+    return ShutterMotion(objects, camera if _moving(camera) else None, shutter_curve(render))
