@@ -175,11 +175,11 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
 constexpr bool table_is_consistent() {
     for (std::size_t i = 0; i < kChannels.size(); ++i) {
         if (std::size_t(kChannels[i].channel) != i) return false;
-        if (i >= std::size_t(FilmChannel::Emission) &&
-            i - std::size_t(FilmChannel::Emission) >= kLightPassCount) return false;
         if (kChannels[i].combination != SampleCombination::FirstSample && kChannels[i].empty_value != 0.0f) return false;
     }
-    return true;
+    // The light passes are consecutive channels from Emission, in LightPass order (is_light_pass, light_of).
+    return std::size_t(FilmChannel::TransmissionColor) - std::size_t(FilmChannel::Emission) + 1 == kLightPassCount &&
+           std::size_t(LightPass::TransmissionColor) + 1 == kLightPassCount;
 }
 static_assert(table_is_consistent(),
               "film_channels(): rows out of FilmChannel order, or a Mean or Sum channel not empty at 0");
