@@ -23,6 +23,8 @@ struct MeshRecord {
     RTCScene sub_scene = nullptr;   // every mesh is instanced, so that moving or editing it rebuilds only its BVH
     unsigned top_geom_id = RTC_INVALID_GEOMETRY_ID;
     bool dirty = false;             // replaced by Scene::update_mesh since the last build
+    // Scene::set_mesh_cryptomatte_names (kept by update_mesh): the object's and the asset's Cryptomatte ids.
+    float cryptomatte_object = 0.0f, cryptomatte_asset = 0.0f;
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
 };
