@@ -139,8 +139,9 @@ def load_image(path):
 def render_to_array(name):
     """Renders the scene with F12's operator into a 32-bit EXR and returns its linear RGBA pixels."""
     scene = bpy.context.scene
+    from raysplats.blender.compat import use_single_image
     path = tmp_file(name + ".exr")
-    scene.render.image_settings.file_format = "OPEN_EXR"
+    use_single_image(scene.render.image_settings, "OPEN_EXR")
     scene.render.image_settings.color_depth = "32"
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)

@@ -275,6 +275,14 @@ def use_multilayer_exr(image_settings):
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
 
 
+def use_single_image(image_settings, file_format):
+    """Sets `image_settings` to write one image of `file_format` ("PNG", "OPEN_EXR", ...), not a multilayer file
+    (from 5.0 on, that is the media type "IMAGE", which a multilayer output before has replaced)."""
+    if IMAGE_FORMAT_HAS_MEDIA_TYPE:
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = file_format
+
+
 def prepare_gltf_importer():
     """Blender 3.4's glTF importer calls np.bool, which numpy 1.24 removed (Debian's Blender 3.4 runs with numpy
     1.24; fixed in Blender 3.5): the alias is restored there, so the importer can read a glTF file's meshes."""
