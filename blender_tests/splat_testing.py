@@ -235,6 +235,25 @@ def read_uncompressed_exr(path):
     return result
 
 
+class RecordingLayout:
+    """Stands in for a panel's UILayout: records each property drawn as (owner type name, property, its text)."""
+
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+
+    def prop(self, owner, name, text=None, **kwargs):
+        self.log.append((type(owner).__name__, name, text))
+
+    def column(self, *args, **kwargs):
+        return RecordingLayout(self.log)
+
+    row = box = split = column
+
+    def label(self, *args, **kwargs):
+        pass
+
+
 def render_multilayer_exr(name):
     """F12 with the operator into an uncompressed 32-bit multilayer EXR, read back: {"ViewLayer.Pass.Channel": float32
     array, rows top to bottom}."""

@@ -6,6 +6,7 @@
 import json
 import struct
 import unittest
+from types import SimpleNamespace
 
 import bpy
 import numpy as np
@@ -115,9 +116,16 @@ def exr_string_attributes(path):
 
 class Cryptomatte(unittest.TestCase):
     def test_the_panel_is_blenders_own(self):
-        from raysplats.engine import ui
-        self.assertIn("VIEWLAYER_PT_layer_passes_cryptomatte", ui._COMPATIBLE_PANELS)
-        self.assertIn("RAYSPLATS", bpy.types.VIEWLAYER_PT_layer_passes_cryptomatte.COMPAT_ENGINES)
+        # View Layer > Passes > Cryptomatte is Blender's panel, shown for this engine, drawing every setting it reads.
+        panel = bpy.types.VIEWLAYER_PT_layer_passes_cryptomatte
+        self.assertIn("RAYSPLATS", panel.COMPAT_ENGINES)
+        scene = st.reset_render_scene(8, 8, 1)
+        layout = st.RecordingLayout()
+        panel.draw(SimpleNamespace(layout=layout),
+                   SimpleNamespace(engine=scene.render.engine, view_layer=bpy.context.view_layer, scene=scene))
+        self.assertLessEqual({"use_pass_cryptomatte_object", "use_pass_cryptomatte_material",
+                              "use_pass_cryptomatte_asset", "pass_cryptomatte_depth"},
+                             {name for owner, name, _ in layout.log if owner == "ViewLayer"})
 
     def test_passes_are_cycles_layout(self):
         scene = new_scene(samples=4)
