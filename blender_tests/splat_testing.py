@@ -235,6 +235,17 @@ def read_uncompressed_exr(path):
     return result
 
 
+def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
+    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
+    count = len(centres)
+    sh = np.zeros((count, 1, 3), dtype=np.float32)
+    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
+    return {"positions": np.asarray(centres, dtype=np.float32),
+            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
+            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
+            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
+
+
 class RecordingLayout:
     """Stands in for a panel's UILayout: records each property drawn as (owner type name, property, its text)."""
 

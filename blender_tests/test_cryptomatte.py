@@ -25,17 +25,6 @@ MIN_IOU = 0.97
 OBJECTS = {"Floor": 1, "Box": 2, "Splats": 3, "Points": 4}
 
 
-def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
-    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
-    count = len(centres)
-    sh = np.zeros((count, 1, 3), dtype=np.float32)
-    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
-    return {"positions": np.asarray(centres, dtype=np.float32),
-            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
-            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
-            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
-
-
 def new_scene(samples=16):
     """A camera 10 units above z = 0 looking down at a floor, a box on it, a polygon splat object over the floor
     and compact points over the world (the floor covers the left half); materials "Ground" and "Paint"."""
@@ -63,9 +52,9 @@ def new_scene(samples=16):
     scene.collection.objects.link(rig)
     box.parent = rig
     splats, _ = creation.add_gaussian_object(
-        bpy.context, "Splats", flat_gaussian_cloud([(-1.0, 1.2, 2.0), (-0.4, 1.0, 2.0)], 0.5, 0.9), 8, 3.0, "Z")
+        bpy.context, "Splats", st.flat_gaussian_cloud([(-1.0, 1.2, 2.0), (-0.4, 1.0, 2.0)], 0.5, 0.9), 8, 3.0, "Z")
     points = creation.add_compact_object(
-        bpy.context, "Points", flat_gaussian_cloud([(1.6, 0.2, 2.0), (2.1, -0.6, 2.0)], 0.45, 0.95), "Z")
+        bpy.context, "Points", st.flat_gaussian_cloud([(1.6, 0.2, 2.0), (2.1, -0.6, 2.0)], 0.45, 0.95), "Z")
     for name, index in OBJECTS.items():
         bpy.data.objects[name].pass_index = index
     return scene

@@ -181,17 +181,6 @@ class MeshDataPasses(unittest.TestCase):
                                    atol=1e-3)
 
 
-def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
-    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
-    count = len(centres)
-    sh = np.zeros((count, 1, 3), dtype=np.float32)
-    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
-    return {"positions": np.asarray(centres, dtype=np.float32),
-            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
-            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
-            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
-
-
 GAUSSIAN_OBJECT_INDEX, GAUSSIAN_MATERIAL_INDEX = 9, 11
 LAYER_Z, SIGMA, OPACITY = 2.0, 0.6, 0.9
 CENTRES = [(-1.2, 0.4, LAYER_Z), (1.3, -0.3, LAYER_Z)]
@@ -207,7 +196,7 @@ def gaussian_scene(kind, falloff="LINEAR", orthographic=True):
     bpy.context.view_layer.use_pass_z = True
     bpy.context.view_layer.raysplats_passes.use_pass_alpha = True
     add_plane("Floor", (4.0, 8.0), (-2.0, 0.0, 0.0), object_index=3, material_index=5)
-    cloud = flat_gaussian_cloud(CENTRES, SIGMA, OPACITY)
+    cloud = st.flat_gaussian_cloud(CENTRES, SIGMA, OPACITY)
     if kind == "POLYGONS":
         obj, _ = creation.add_gaussian_object(bpy.context, "Splats", cloud, 8, 3.0, "Z")
         obj.material_slots[0].material.pass_index = GAUSSIAN_MATERIAL_INDEX  # the falloff material

@@ -64,23 +64,18 @@ float cryptomatte_id(std::uint32_t hash) {
     return id;
 }
 
-const char* cryptomatte_pass_prefix(CryptomatteType type) {
-    switch (type) {
-        case CryptomatteType::Object: return "CryptoObject";
-        case CryptomatteType::Material: return "CryptoMaterial";
-        case CryptomatteType::Asset: return "CryptoAsset";
-    }
-    return "";
-}
+namespace {
 
-const char* cryptomatte_key(CryptomatteType type) {
-    switch (type) {
-        case CryptomatteType::Object: return "cryptomatte_object";
-        case CryptomatteType::Material: return "cryptomatte_material";
-        case CryptomatteType::Asset: return "cryptomatte_asset";
-    }
-    return "";
-}
+// By CryptomatteType: the passes' prefix (Cycles' names) and the type's key.
+constexpr const char* kNames[kCryptomatteTypes][2] = {{"CryptoObject", "cryptomatte_object"},
+                                                      {"CryptoMaterial", "cryptomatte_material"},
+                                                      {"CryptoAsset", "cryptomatte_asset"}};
+
+}  // namespace
+
+const char* cryptomatte_pass_prefix(CryptomatteType type) { return kNames[std::size_t(type)][0]; }
+
+const char* cryptomatte_key(CryptomatteType type) { return kNames[std::size_t(type)][1]; }
 
 CryptomatteLayout cryptomatte_layout_of(const RenderSettings& settings) {
     CryptomatteLayout layout;
