@@ -52,6 +52,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "blend_space", std::string("LINEAR"));
     table.set(s, "camera_ray_splatting", true);
     table.set(s, "denoising_data", true);
+    table.set(s, "mist_pass", true);
+    table.set(s, "cryptomatte_object", true);
+    table.set(s, "cryptomatte_material", true);
+    table.set(s, "cryptomatte_asset", true);
+    table.set(s, "cryptomatte_levels", std::int64_t(4));
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -71,10 +76,13 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_EQ(s.blend_space, BlendSpace::Linear);
     EXPECT_TRUE(s.camera_ray_splatting);
     EXPECT_TRUE(s.denoising_data);
+    EXPECT_TRUE(s.mist_pass);
+    EXPECT_TRUE(s.cryptomatte_object && s.cryptomatte_material && s.cryptomatte_asset);
+    EXPECT_EQ(s.cryptomatte_levels, 4);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 29u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 34u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {
