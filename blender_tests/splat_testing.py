@@ -114,6 +114,8 @@ def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
             "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
             "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
             "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
+
+
 def emission_material(name, color=(1.0, 1.0, 1.0)):
     """A material that only emits `color` at strength 1."""
     material = bpy.data.materials.new(name)
@@ -148,14 +150,14 @@ def camera_above_scene(width, height, samples, camera_type, ortho_scale):
 
 
 class RecordingLayout:
-    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+    """Stands in for a panel's UILayout: records each property drawn as (owner type name, property, its text)."""
 
-    def __init__(self, log):
-        self.log = log
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
         self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
 
-    def prop(self, owner, name, **kwargs):
-        self.log.append((type(owner).__name__, name))
+    def prop(self, owner, name, text=None, **kwargs):
+        self.log.append((type(owner).__name__, name, text))
 
     def column(self, *args, **kwargs):
         return RecordingLayout(self.log)
@@ -283,8 +285,9 @@ def load_image(path):
 def render_to_array(name):
     """Renders the scene with F12's operator into a 32-bit EXR and returns its linear RGBA pixels."""
     scene = bpy.context.scene
+    from raysplats.blender.compat import use_single_image
     path = tmp_file(name + ".exr")
-    scene.render.image_settings.file_format = "OPEN_EXR"
+    use_single_image(scene.render.image_settings, "OPEN_EXR")
     scene.render.image_settings.color_depth = "32"
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)

@@ -57,6 +57,7 @@ EXPECTED = {
                                             "GlossCol": "Glossy Color", "TransDir": "Transmission Direct",
                                             "TransInd": "Transmission Indirect", "TransCol": "Transmission Color"},
                                    {}),
+    "COMPOSITOR_IS_NODE_GROUP": since((5, 0), True, False),
     "NEWER_THAN_TESTED": since((5, 2), False, False),  # every Blender in this table was tested
 }
 # Names in compat.py that are the same on every version (layouts, keys), not probed.

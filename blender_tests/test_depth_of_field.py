@@ -314,7 +314,7 @@ class CameraPanels(unittest.TestCase):
             for method in ("draw_header", "draw"):
                 if hasattr(panel, method):
                     getattr(panel, method)(stand_in, context)
-        settings = {name for owner, name in drawn if owner == "CameraDOFSettings"}
+        settings = {name for owner, name, _ in drawn if owner == "CameraDOFSettings"}
         self.assertLessEqual({"use_dof", "focus_object", "focus_distance", "aperture_fstop", "aperture_blades",
                               "aperture_rotation", "aperture_ratio"}, settings)
 

@@ -227,11 +227,11 @@ class Panels(unittest.TestCase):
             for method in ("draw_header", "draw"):
                 if hasattr(panel, method):
                     getattr(panel, method)(stand_in, context)
-        names = {name for _, name in drawn}
+        names = {name for _, name, _ in drawn}
         self.assertLessEqual({"use_motion_blur", "motion_blur_shutter", "motion_blur_position",
                               "motion_blur_shutter_curve", "motion_steps"}, names)
         self.assertIn(type(motion_blur.position_settings(scene)).__name__,
-                      {owner for owner, name in drawn if name == "motion_blur_position"})
+                      {owner for owner, name, _ in drawn if name == "motion_blur_position"})
 
 
 def cycles_scene():

@@ -39,6 +39,30 @@ class RenderPasses(unittest.TestCase):
         self.assertFalse(view_layer.raysplats_passes.use_pass_alpha)
         self.assertIn("use_pass_alpha", view_layer.raysplats_passes.bl_rna.properties.keys())
 
+    def test_pass_check_boxes_have_blenders_labels(self):
+        # Blender's own labels on every Blender, not the passes' names (IndexOB and IndexMA before 5.0).
+        from raysplats.engine import passes
+        layout = st.RecordingLayout()
+        passes.draw_pass_toggles(layout, bpy.context.view_layer)
+        labels = {name: text for _, name, text in layout.log}
+        self.assertEqual(labels["use_pass_object_index"], "Object Index")
+        self.assertEqual(labels["use_pass_material_index"], "Material Index")
+        self.assertEqual(labels["use_pass_mist"], "Mist")
+
+    def test_the_mist_pass_alone_asks_the_core_for_mist(self):
+        # The core computes the Mist pass's sums only when the view layer has the pass (render setting mist_pass).
+        from raysplats.engine import passes
+        view_layer = bpy.context.view_layer
+        self.assertFalse(passes.core_settings(view_layer)["mist_pass"])
+        view_layer.use_pass_mist = True
+        self.assertTrue(passes.core_settings(view_layer)["mist_pass"])
+        exr = self.render_exr("passes_mist_flag")
+        layer = next(name.split(".")[0] for name in exr)
+        # The plane (3 units away, within the default mist's 100) has mist below 1; the world's is 1.
+        mist = exr[f"{layer}.Mist.Z"]
+        self.assertLess(float(mist[15, 5]), 0.1)
+        self.assertEqual(float(mist[15, 35]), 1.0)
+
     def test_only_enabled_passes_are_written(self):
         # Blender's own check boxes of the data passes are off in a new scene.
         view_layer = bpy.context.view_layer

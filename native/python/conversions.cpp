@@ -210,6 +210,12 @@ py::dict film_to_dict(Film&& film) {
         d[info.key] = c == 1 ? to_numpy(std::move(film[info.channel]), {h, w})
                              : to_numpy(std::move(film[info.channel]), {h, w, py::ssize_t(c)});
     }
+    // The Cryptomatte passes the render filled: (h, w, layers, 4), layer k the RGBA of pass "<prefix>%02d" % k.
+    for (std::size_t t = 0; t < kCryptomatteTypes; ++t) {
+        if (film.cryptomatte[t].empty()) continue;
+        const py::ssize_t layers = film.cryptomatte_ranks / 2;
+        d[cryptomatte_key(CryptomatteType(t))] = to_numpy(std::move(film.cryptomatte[t]), {h, w, layers, 4});
+    }
     return d;
 }
 

@@ -211,6 +211,17 @@ struct RenderScene {
         shared.change()->set_gaussian_pass_indices(index, object_pass_index, material_pass_index);
     }
 
+    void set_gaussian_cryptomatte_names(std::uint32_t index, const std::string& object, const std::string& material,
+                                        const std::string& asset) {
+        shared.change()->set_gaussian_cryptomatte_names(index, object, material, asset);
+    }
+    void set_mesh_cryptomatte_names(std::uint32_t index, const std::string& object, const std::string& asset) {
+        shared.change()->set_mesh_cryptomatte_names(index, object, asset);
+    }
+    void set_material_cryptomatte_name(std::uint32_t index, const std::string& material) {
+        shared.change()->set_material_cryptomatte_name(index, material);
+    }
+
     std::uint32_t add_light(const std::string& type, const py::object& color, float power, const py::object& matrix,
                             float spot_size, float spot_blend, float size_x, float size_y, float sun_angle) {
         raysplats::Light l;
@@ -311,6 +322,20 @@ py::list film_channel_table() {
 }
 
 void register_render_bindings(py::module_& m) {
+    m.def("cryptomatte_hash", [](const std::string& name) { return raysplats::cryptomatte_hash(name); }, "name"_a,
+          "A name's Cryptomatte hash (MurmurHash3_32, seed 0, of its UTF-8 bytes), which its id and the manifest's "
+          "8 hex digits are made of");
+    m.def("cryptomatte_passes", [] {
+              py::list passes;
+              for (std::size_t t = 0; t < raysplats::kCryptomatteTypes; ++t) {
+                  const auto type = raysplats::CryptomatteType(t);
+                  passes.append(py::dict("key"_a = raysplats::cryptomatte_key(type),
+                                         "prefix"_a = raysplats::cryptomatte_pass_prefix(type)));
+              }
+              return passes;
+          },
+          "The Cryptomatte pass types in order: key (the render setting and RenderJob.result()'s dict key) and prefix "
+          "(the passes' names before their two-digit layer number)");
     m.def("film_channels", &film_channel_table,
           "The render's film channels in order: key (RenderJob.result()'s dict key), pass_name, components (one letter "
           "each), kind (COLOR/VALUE/VECTOR), empty_value, first_sample_only, description");
@@ -362,6 +387,13 @@ void register_render_bindings(py::module_& m) {
         .def("set_gaussian_pass_indices", &RenderScene::set_gaussian_pass_indices, "index"_a, "object_pass_index"_a,
              "material_pass_index"_a = 0u,
              "The Object and Material Index passes' values where Gaussian cloud `index` is the surface")
+        .def("set_gaussian_cryptomatte_names", &RenderScene::set_gaussian_cryptomatte_names, "index"_a, "object"_a,
+             "material"_a = "", "asset"_a = "",
+             "The names whose Cryptomatte ids Gaussian cloud `index` gives ('' gives none)")
+        .def("set_mesh_cryptomatte_names", &RenderScene::set_mesh_cryptomatte_names, "index"_a, "object"_a,
+             "asset"_a = "", "The names whose Cryptomatte ids mesh `index` gives (its materials give theirs)")
+        .def("set_material_cryptomatte_name", &RenderScene::set_material_cryptomatte_name, "index"_a, "material"_a,
+             "The name whose Cryptomatte id material `index` gives")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "raysplats/errors.h"
 #include "raysplats/render/renderer.h"
@@ -98,10 +99,17 @@ Checked check_passes(const Film& film, double falloff, double mist_tolerance) {
 
 }  // namespace
 
+// The settings of a render with the Mist pass (RenderSettings::mist_pass).
+RenderSettings mist_settings(Compositing compositing, int samples) {
+    RenderSettings s = pixel_centre_settings(compositing, samples);
+    s.mist_pass = true;
+    return s;
+}
+
 TEST(RenderDataPasses, SortedCompositingFollowsTheClosedForm) {
     for (float falloff : {2.0f, 1.0f, 0.5f}) {
         DataPassScene s(falloff);
-        const Film film = render(s.scene, s.camera, pixel_centre_settings(Compositing::Sorted, 2));
+        const Film film = render(s.scene, s.camera, mist_settings(Compositing::Sorted, 2));
         const Checked n = check_passes(film, falloff, 2e-4);
         EXPECT_GT(n.gaussian, 20);
         EXPECT_GT(n.floor, 20);
@@ -113,7 +121,7 @@ TEST(RenderDataPasses, StochasticCompositingConvergesToIt) {
     // One Gaussian accepted with probability alpha per sample: the mean mist converges (4096 samples: standard error
     // below 0.4 * 0.5 / 64).
     DataPassScene s(1.0f);
-    const Film film = render(s.scene, s.camera, pixel_centre_settings(Compositing::Stochastic, 4096));
+    const Film film = render(s.scene, s.camera, mist_settings(Compositing::Stochastic, 4096));
     for (std::size_t p = 0; p < film.pixel_count(); ++p) {
         EXPECT_GE(film[FilmChannel::Mist][p], 0.0f);
         EXPECT_LE(film[FilmChannel::Mist][p], 1.0f);
@@ -136,4 +144,26 @@ TEST(RenderDataPasses, WorldMistSettingsAreValidated) {
     w.mist_falloff = 0.0f;
     EXPECT_THROW(scene.set_world(w), InvalidArgument);
     EXPECT_THROW(scene.set_gaussian_pass_indices(0, 1, 2), InvalidArgument);  // no such cloud
+}
+
+TEST(RenderDataPasses, MistOffComputesNothingAndChangesNothingElse) {
+    // Without the Mist pass the channel holds 1 (no surface's term was added) and every other channel is bit for bit
+    // that of the render with it, in both compositing modes and with camera-ray splatting.
+    EXPECT_FALSE(RenderSettings{}.mist_pass);
+    for (int mode = 0; mode < 3; ++mode) {
+        DataPassScene s(1.0f);
+        if (mode == 2) s.camera.type = CameraType::Perspective;
+        RenderSettings off = pixel_centre_settings(mode == 1 ? Compositing::Stochastic : Compositing::Sorted, 8);
+        off.jitter = true;
+        off.camera_ray_splatting = mode == 2;
+        RenderSettings on = off;
+        on.mist_pass = true;
+        const Film without = render(s.scene, s.camera, off), with = render(s.scene, s.camera, on);
+        EXPECT_EQ(without.stats.camera_ray_splatting, mode == 2);
+        double mist_sum = 0.0;
+        for (float v : with[FilmChannel::Mist]) mist_sum += v;
+        EXPECT_LT(mist_sum, 0.99 * double(with.pixel_count())) << mode;  // the pass saw the floor and the Gaussians
+        for (float v : without[FilmChannel::Mist]) ASSERT_EQ(v, 1.0f) << mode;
+        expect_channels_bit_identical(without, with, "Mist off and on", {FilmChannel::Mist});
+    }
 }

@@ -1,8 +1,12 @@
 // Scene builders shared by the render tests (constructed in code; no file readers needed).
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <random>
 #include <vector>
 
@@ -121,6 +125,18 @@ inline GaussianCloud random_cloud(std::uint32_t seed, int n, float extent) {
         add_gaussian(cloud, p, q, s, 0.1f + 0.85f * u(rng), c);
     }
     return cloud;
+}
+
+// Asserts that every film channel but `except` holds the same bits in `a` and `b` (`what` names the comparison).
+inline void expect_channels_bit_identical(const Film& a, const Film& b, const char* what,
+                                          std::vector<FilmChannel> except = {}) {
+    for (std::size_t k = 0; k < kFilmChannelCount; ++k) {
+        if (std::find(except.begin(), except.end(), FilmChannel(k)) != except.end()) continue;
+        const FloatBuffer &x = a[FilmChannel(k)], &y = b[FilmChannel(k)];
+        ASSERT_EQ(x.size(), y.size()) << what << ": " << film_channels()[k].key;
+        for (std::size_t i = 0; i < x.size(); ++i)
+            ASSERT_EQ(std::memcmp(&x[i], &y[i], sizeof(float)), 0) << what << ": " << film_channels()[k].key << " " << i;
+    }
 }
 
 }  // namespace raysplats::testing

@@ -53,6 +53,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "camera_ray_splatting", true);
     table.set(s, "denoising_data", true);
     table.set(s, "light_passes", true);
+    table.set(s, "mist_pass", true);
+    table.set(s, "cryptomatte_object", true);
+    table.set(s, "cryptomatte_material", true);
+    table.set(s, "cryptomatte_asset", true);
+    table.set(s, "cryptomatte_levels", std::int64_t(4));
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -73,10 +78,13 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_TRUE(s.camera_ray_splatting);
     EXPECT_TRUE(s.denoising_data);
     EXPECT_TRUE(s.light_passes);
+    EXPECT_TRUE(s.mist_pass);
+    EXPECT_TRUE(s.cryptomatte_object && s.cryptomatte_material && s.cryptomatte_asset);
+    EXPECT_EQ(s.cryptomatte_levels, 4);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 30u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 35u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

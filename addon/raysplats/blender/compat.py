@@ -245,6 +245,27 @@ def render_pass_name(name):
     return RENAMED_RENDER_PASSES.get(name, name)
 
 
+# --- Compositor ---------------------------------------------------------------------------------------------------
+
+# Blender 5.0 made the scene's compositor a node group of its own (Scene.compositing_node_group), whose Group Output
+# is the composited image; before, it is Scene.node_tree (after Scene.use_nodes), whose Composite node is.
+COMPOSITOR_IS_NODE_GROUP = _has_property(bpy.types.Scene, "compositing_node_group")
+
+
+def new_compositor(scene):
+    """Gives `scene` a new, empty compositor that renders use: returns (node tree, the input socket whose value is
+    the composited image)."""
+    if COMPOSITOR_IS_NODE_GROUP:
+        tree = bpy.data.node_groups.new("Compositor", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+        return tree, tree.nodes.new("NodeGroupOutput").inputs[0]
+    scene.use_nodes = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    return tree, tree.nodes.new("CompositorNodeComposite").inputs["Image"]
+
+
 # --- Operators --------------------------------------------------------------------------------------------------------
 
 # bpy.ops.transform.rotate(value=a, orient_axis=X) turns by TRANSFORM_ROTATE_SIGN * a, right-handed about the axis.
@@ -262,6 +283,14 @@ def use_multilayer_exr(image_settings):
     if IMAGE_FORMAT_HAS_MEDIA_TYPE:
         image_settings.media_type = "MULTI_LAYER_IMAGE"
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
+
+
+def use_single_image(image_settings, file_format):
+    """Sets `image_settings` to write one image of `file_format` ("PNG", "OPEN_EXR", ...), not a multilayer file
+    (from 5.0 on, that is the media type "IMAGE", which a multilayer output before has replaced)."""
+    if IMAGE_FORMAT_HAS_MEDIA_TYPE:
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = file_format
 
 
 def prepare_gltf_importer():

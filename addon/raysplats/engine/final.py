@@ -126,8 +126,8 @@ def render_final(engine, depsgraph):
     # The denoiser's guides are computed when the render denoises or writes them.
     render_settings = sync.render_settings(
         scene, width, height, settings.samples, adaptive=True,
-        denoising_data=settings.use_denoising or passes.denoising_passes_enabled(depsgraph.view_layer),
-        light_passes=passes.light_passes_enabled(depsgraph.view_layer))
+        denoising_data=settings.use_denoising or passes.denoising_passes_enabled(depsgraph.view_layer))
+    render_settings.update(passes.core_settings(depsgraph.view_layer))
 
     # With a render border (cropped or not) Blender's render result is the border's size; Blender places it in the
     # frame itself (uncropped: the rest transparent). The core renders only the border's pixels, at their place in
@@ -194,6 +194,13 @@ def render_final(engine, depsgraph):
         raise
     with clock.stage("write"):
         engine.end_result(result)
+        # The Cryptomatte passes' metadata, on the render's own result as Cycles puts it there (get_result), so that the
+        # compositor's Cryptomatte node and saved EXR files name what the ids are.
+        metadata = passes.cryptomatte_metadata(depsgraph.view_layer, scene_sync.cryptomatte_names)
+        if metadata:
+            render_result = engine.get_result()
+            for field, value in metadata.items():
+                render_result.stamp_data_add_field(field, value)
     for stage, prefix in (("prepass", "splat_prepass"), ("samples", "sample"), ("film", "film")):
         clock.add(stage, film[prefix + "_cpu_seconds"], film[prefix + "_seconds"])
     last_render.update(stages={name: tuple(values) for name, values in clock.stages.items()}, scene=how,

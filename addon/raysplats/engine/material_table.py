@@ -14,6 +14,7 @@ class MaterialTable:
         self.warn = warn
         self.indices = {}
         self.uv_maps = {}
+        self.names = set()  # of the materials converted (the Cryptomatte Material manifest)
         self.images = ImageCache(warn)
         self.default = render_scene.add_material()
 
@@ -25,6 +26,9 @@ class MaterialTable:
             kwargs, uv_map = read_material(material, self.warn, self.images)
             # (The Material Index pass's value, which no exporter needs, so not the reader's.)
             self.indices[key] = self.render_scene.add_material(pass_index=material.pass_index, **kwargs)
+            # (Cycles' shaders take the material's name, which Cryptomatte Material hashes.)
+            self.render_scene.set_material_cryptomatte_name(self.indices[key], material.name)
+            self.names.add(material.name)
             self.uv_maps[key] = uv_map
         return self.indices[key]
 

@@ -1,6 +1,10 @@
 # Render passes of the RaySplats engine, all from the core's film channel table (_native.film_channels(),
 # native/include/raysplats/render/film.h): registration (update_render_passes), the check boxes in View Layer >
 # Passes, and the final render's writes. A channel the core adds appears here with no change to this module.
+# The Cryptomatte passes (_native.cryptomatte_passes(), native/include/raysplats/render/cryptomatte.h) are Blender's
+# own settings (View Layer > Passes > Cryptomatte), registered, written and described by their metadata here too.
+import json
+
 import bpy
 import numpy as np
 
@@ -16,6 +20,9 @@ _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": 
                     "GlossInd": "use_pass_glossy_indirect", "GlossCol": "use_pass_glossy_color",
                     "TransDir": "use_pass_transmission_direct", "TransInd": "use_pass_transmission_indirect",
                     "TransCol": "use_pass_transmission_color"}
+# The check boxes' labels where the pass's name is not one: Blender's own labels of use_pass_object_index and
+# use_pass_material_index (the passes were named "IndexOB" and "IndexMA" before 5.0).
+_LABELS = {"IndexOB": "Object Index", "IndexMA": "Material Index"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -77,6 +84,55 @@ def vector_pass_enabled(view_layer):
     return any(enabled(view_layer, channel) for channel in channels() if channel["key"] == "vector")
 
 
+def core_settings(view_layer):
+    """The core's render settings that follow the view layer's passes: the Mist pass's sums, the split of the light
+    and the Cryptomatte passes are computed only when the layer has them."""
+    settings = {"mist_pass": bool(view_layer.use_pass_mist), "light_passes": light_passes_enabled(view_layer),
+                "cryptomatte_levels": int(view_layer.pass_cryptomatte_depth)}
+    for crypto in cryptomatte_types():
+        settings[crypto["key"]] = bool(getattr(view_layer, crypto["toggle"]))
+    return settings
+
+
+def cryptomatte_types():
+    """The Cryptomatte pass types (Object, Material, Asset) with the core's key, the passes' name prefix, Blender's
+    check box (ViewLayer.use_pass_cryptomatte_*) and the kind of name their ids hash (the manifest's)."""
+    try:
+        types = native.core().cryptomatte_passes()
+    except native.NativeModuleMissing:
+        return []
+    return [dict(t, toggle="use_pass_" + t["key"], names=t["key"].split("_", 1)[1]) for t in types]
+
+
+def cryptomatte_pass_names(view_layer, crypto):
+    """The passes of one Cryptomatte type the view layer has: "CryptoObject00", ... (Cycles: blender/addon/engine.py,
+    list_render_passes: ceil(min(16, Levels) / 2) RGBA layers of two ranks), none when its check box is off."""
+    if not getattr(view_layer, crypto["toggle"]):
+        return []
+    layers = (min(16, view_layer.pass_cryptomatte_depth) + 1) // 2
+    return [f"{crypto['prefix']}{layer:02d}" for layer in range(layers)]
+
+
+def cryptomatte_metadata(view_layer, names):
+    """The render result's metadata of the view layer's Cryptomatte passes, as Cycles writes it
+    (blender/session.cpp, add_cryptomatte_layer): for the layer "<view layer>.CryptoObject" (...Material, ...Asset),
+    with h the 8 hex digits of its name's hash, "cryptomatte/<h[:7]>/name", "hash", "conversion" and "manifest" (a JSON
+    object of every name of that kind in the scene and its hash's 8 hex digits). `names`: kind ("object", "material",
+    "asset") -> the names the scene gave the core."""
+    core = native.core()
+    fields = {}
+    for crypto in cryptomatte_types():
+        if not getattr(view_layer, crypto["toggle"]):
+            continue
+        layer = f"{view_layer.name}.{crypto['prefix']}"
+        prefix = f"cryptomatte/{core.cryptomatte_hash(layer):08x}"[:-1] + "/"  # the first 7 hex digits
+        manifest = {name: f"{core.cryptomatte_hash(name):08x}" for name in sorted(names.get(crypto["names"], ()))}
+        fields.update({prefix + "name": layer, prefix + "hash": "MurmurHash3_32",
+                       prefix + "conversion": "uint32_to_float32",
+                       prefix + "manifest": json.dumps(manifest, separators=(",", ":"), ensure_ascii=False)})
+    return fields
+
+
 def blender_name(channel):
     """The render pass's name in this Blender (5.0 renamed some)."""
     return compat.render_pass_name(channel["pass_name"])
@@ -87,6 +143,10 @@ def register_passes(engine, scene, view_layer):
         if enabled(view_layer, channel):
             engine.register_pass(scene, view_layer, blender_name(channel), len(channel["components"]),
                                  channel["components"], channel["kind"])
+    for crypto in cryptomatte_types():
+        for name in cryptomatte_pass_names(view_layer, crypto):
+            # Cycles' channel ids and kind for them.
+            engine.register_pass(scene, view_layer, name, 4, "rgba", "COLOR")
 
 
 def written_keys(render_layer):
@@ -104,6 +164,14 @@ def write_passes(render_layer, film, rows, cols):
         values = film[channel["key"]][rows, cols][::-1]
         values = np.where(np.isfinite(values), values, _FAR)
         compat.set_render_pass(render_pass, values)
+    for crypto in cryptomatte_types():
+        if crypto["key"] not in film:
+            continue
+        layers = film[crypto["key"]]  # (h, w, layers, 4): layer k is pass <prefix>k
+        for layer in range(layers.shape[2]):
+            render_pass = render_layer.passes.get(f"{crypto['prefix']}{layer:02d}")
+            if render_pass is not None:
+                compat.set_render_pass(render_pass, layers[rows, cols, layer][::-1])
 
 
 def draw_pass_toggles(layout, view_layer):
@@ -118,7 +186,7 @@ def draw_pass_toggles(layout, view_layer):
             row.enabled = False
             row.label(text=blender_name(channel), icon="CHECKBOX_HLT")
         else:
-            column.prop(*toggle, text=blender_name(channel))
+            column.prop(*toggle, text=_LABELS.get(channel["pass_name"], blender_name(channel)))
 
 
 def draw_light_pass_toggles(layout, view_layer):

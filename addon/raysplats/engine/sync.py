@@ -46,12 +46,25 @@ def _world_mist(scene):
             "mist_falloff": _MIST_FALLOFF[mist.falloff]}
 
 
+def first_material(obj):
+    """The material a Gaussian object's Gaussians count as in the Material Index and Cryptomatte Material passes: its
+    first material (None without one), since Gaussians have no material of their own (docs/reference.md, Passes)."""
+    return next((slot.material for slot in obj.material_slots if slot.material is not None), None)
+
+
 def pass_indices(obj):
     """(object pass index, material pass index) of a Gaussian object for the Object and Material Index passes: its
-    Object.pass_index, and its first material's pass_index (0 without one), since Gaussians have no material of
-    their own (docs/reference.md, Passes)."""
-    material = next((slot.material for slot in obj.material_slots if slot.material is not None), None)
+    Object.pass_index, and its first material's pass_index (0 without one)."""
+    material = first_material(obj)
     return int(obj.pass_index), int(material.pass_index) if material is not None else 0
+
+
+def cryptomatte_asset(obj):
+    """The Cryptomatte Asset name of an object: its top-level parent's name, or its own without a parent (Cycles,
+    blender/object.cpp, sync_object)."""
+    while obj.parent is not None:
+        obj = obj.parent
+    return obj.name
 
 
 def _world(scene):
@@ -198,6 +211,9 @@ class SceneSync:
         # motion (apply_motion).
         self.instances = []
         self.has_motion = False
+
+        # The names given to the core for the Cryptomatte passes, by kind: their manifests (passes.py).
+        self.cryptomatte_names = {"object": set(), "material": set(), "asset": set()}
         self._build(depsgraph)
 
     @staticmethod
@@ -342,6 +358,8 @@ class SceneSync:
                 self.instances.append((motion_blur.instance_key(instance), False, index))
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
                 render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
+                material = first_material(obj)
+                self._name_for_cryptomatte(index, obj, material.name if material is not None else "")
                 if uid is None:
                     continue
                 self.pass_indices[uid] = pass_indices(obj)
@@ -362,6 +380,7 @@ class SceneSync:
                                                   face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index)
                 stats.triangles += len(triangles)
                 self.instances.append((motion_blur.instance_key(instance), True, index))
+                self._name_for_cryptomatte(index, obj)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
                     self.pass_indices[uid] = pass_indices(obj)
@@ -369,6 +388,7 @@ class SceneSync:
                 render_scene.add_light(**_light_kwargs(obj.data, matrix))
                 stats.lights += 1
         self.materials = materials
+        self.cryptomatte_names["material"].update(materials.names)
         color, strength = _world(depsgraph.scene)
         render_scene.set_world(color, strength, **_world_mist(depsgraph.scene))
 
@@ -397,6 +417,20 @@ class SceneSync:
                 self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
             else:
                 self.render_scene.set_gaussians_frame_motion(index, matrices[0], matrices[1])
+
+    def _name_for_cryptomatte(self, index, obj, gaussian_material=None):
+        """Gives the core the Cryptomatte names of Gaussian cloud `index` (with `gaussian_material`: the name of the
+        material its Gaussians count as, "" for none) or of mesh `index` (its materials have theirs): the object's name
+        and its asset's, as Cycles names them (the object of an instance is the instanced object)."""
+        asset = cryptomatte_asset(obj)
+        if gaussian_material is None:
+            self.render_scene.set_mesh_cryptomatte_names(index, obj.name, asset)
+        else:
+            self.render_scene.set_gaussian_cryptomatte_names(index, obj.name, gaussian_material, asset)
+        self.cryptomatte_names["object"].add(obj.name)
+        self.cryptomatte_names["asset"].add(asset)
+        if gaussian_material:
+            self.cryptomatte_names["material"].add(gaussian_material)
 
     def _mesh_arrays(self, obj, materials, mesh_cache):
         """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""
@@ -634,10 +668,13 @@ def frame_seed(scene):
 # this sync copies it; a core setting with neither a property nor a place below is an error here and in the tests.
 # Settings made from Blender's own scene data (image size, samples per render kind, the frame's seed, Film >
 # Transparent) or that apply only to the final render (adaptive sampling).
-# denoising_data: on when the render denoises or writes the denoising passes (the callers say which); light_passes:
-# on when the view layer writes a light pass (engine/passes.py).
+# denoising_data: on when the render denoises or writes the denoising passes (the callers say which).
+# mist_pass, light_passes and the Cryptomatte settings: from the view layer's passes (passes.core_settings), in final
+# renders.
 DERIVED_SETTINGS = frozenset({"width", "height", "samples", "seed", "transparent_background", "adaptive_sampling",
-                              "adaptive_threshold", "adaptive_min_samples", "denoising_data", "light_passes"})
+                              "adaptive_threshold", "adaptive_min_samples", "denoising_data", "mist_pass",
+                              "light_passes", "cryptomatte_object", "cryptomatte_material", "cryptomatte_asset",
+                              "cryptomatte_levels"})
 # Settings the add-on leaves at the core's defaults: tuning and test switches that do not change the image, and the
 # render region, which final.py sets from the render border.
 CORE_ONLY_SETTINGS = frozenset({"tile_size", "gather_buffer_size", "jitter", "speculative_ends", "region_x",
@@ -655,16 +692,14 @@ def copied_settings(core):
     return names
 
 
-def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False,
-                    light_passes=False):
+def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False):
     """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
     viewport refines in passes of its own and leaves it off). `denoising_data`: the core fills the denoiser's guide
-    channels (Denoising Albedo and Normal); `light_passes`: the light passes' channels."""
+    channels (Denoising Albedo and Normal)."""
     settings = scene.raysplats
     values = {name: getattr(settings, name) for name in copied_settings(native.core())}
     values.update(width=width, height=height, samples=samples, seed=(frame_seed(scene) + seed_offset) & 0xFFFFFFFF,
-                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data),
-                  light_passes=bool(light_passes))
+                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data))
     if adaptive and settings.use_adaptive_sampling:
         values.update(adaptive_sampling=True, adaptive_threshold=settings.adaptive_threshold,
                       adaptive_min_samples=settings.adaptive_min_samples)

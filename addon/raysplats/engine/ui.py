@@ -17,6 +17,9 @@ _COMPATIBLE_PANELS = (
     # Camera > Depth of Field and its Aperture subpanel: every Camera.dof setting the engine reads (focus distance or
     # object, f-stop, blades, rotation, ratio), where Cycles shows them.
     "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture",
+    # View Layer > Passes > Cryptomatte: Object, Material, Asset and Levels, Blender's own settings that Cycles' panel
+    # of the same name draws (EEVEE's Accurate Mode is drawn only for EEVEE).
+    "VIEWLAYER_PT_layer_passes_cryptomatte",
 )
 
 

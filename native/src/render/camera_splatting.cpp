@@ -31,7 +31,8 @@ const char* CameraSplatting::traced_reason(const Scene::Impl& scene, const Rende
 
 CameraSplatting::CameraSplatting(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                                  const ShadowVisibility& shadow, const std::atomic<bool>* cancel)
-    : s_(scene), st_(settings), shadow_(shadow), prepass_(scene, settings, camera, cancel) {}
+    : s_(scene), st_(settings), shadow_(shadow), prepass_(scene, settings, camera, cancel),
+      cryptomatte_(cryptomatte_layout_of(settings).on()) {}
 
 namespace {
 
@@ -89,8 +90,13 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
     const bool opaque_here = t_before > 0.5f && seg.transmittance <= 0.5f;
     const bool stop = seg.transmittance < st_.transmittance_threshold;
     // As GaussianSegmentTracer::add_mist: a stopping splat takes the transmittance left too.
-    seg.mist_clearance += (stop ? t_before : t_before * alpha) *
-                          mist_clearance(s_.world, ray.camera_distance + ps.depth / view_rate);
+    if (st_.mist_pass)
+        seg.mist_clearance += (stop ? t_before : t_before * alpha) *
+                              mist_clearance(s_.world, ray.camera_distance + ps.depth / view_rate);
+    // As GaussianSegmentTracer::add_cryptomatte, with the same weight.
+    if (cryptomatte_)
+        seg.cryptomatte.add(s_.gaussians[prepass_.sources()[index].set]->cryptomatte_ids,
+                            stop ? t_before : t_before * alpha);
     if (st_.denoising_data) {
         // The denoiser's guides as GaussianSegmentTracer::add_guides, with the colour the splat shows (every splat
         // is BAKED here).

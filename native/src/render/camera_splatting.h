@@ -99,6 +99,7 @@ private:
     const RenderSettings& st_;
     const ShadowVisibility& shadow_;
     const CameraSplatPrepass prepass_;
+    const bool cryptomatte_;  // the render has Cryptomatte passes
 };
 
 }  // namespace raysplats

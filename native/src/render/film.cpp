@@ -119,7 +119,7 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     // (kernel/film/data_passes.h).
     {FilmChannel::Mist, "mist", "Mist", "Z", "VALUE", SampleCombination::Mean, 0.0f,
      "Mist: 1 - the coverage-weighted sum of 1 - mist(distance) along the camera ray (the World's mist settings; "
-     "1: only the world)", mist_of},
+     "1: only the world; needs mist_pass, else 1)", mist_of},
     {FilmChannel::Position, "position", "Position", "XYZ", "VECTOR", SampleCombination::FirstSample, 0.0f,
      "World-space position where the opacity reaches 0.5, the depth's point (first sample; 0: none)", position_of},
     {FilmChannel::ObjectIndex, "object_index", "IndexOB", "X", "VALUE", SampleCombination::FirstSample, 0.0f,
@@ -204,18 +204,30 @@ void Film::allocate(int w, int h) {
         (*this)[info.channel].resize(std::size_t(info.component_count()) * pixel_count());
 }
 
-void Film::clear(int x0, int y0, int x1, int y1) {
-    for (const FilmChannelInfo& info : film_channels()) {
-        FloatBuffer& buffer = (*this)[info.channel];
-        const std::size_t c = std::size_t(info.component_count());
-        for (int y = y0; y < y1; ++y) {
-            const std::size_t begin = std::size_t(y) * width + x0, end = std::size_t(y) * width + x1;
-            std::fill(buffer.begin() + c * begin, buffer.begin() + c * end, info.empty_value);
-        }
+void Film::allocate_cryptomatte(const CryptomatteLayout& layout) {
+    cryptomatte_ranks = layout.ranks;
+    for (std::size_t t = 0; t < kCryptomatteTypes; ++t) {
+        FloatBuffer& buffer = cryptomatte[t];
+        if (layout.on() && layout.types[t]) buffer.resize(2 * std::size_t(layout.ranks) * pixel_count());
+        else FloatBuffer().swap(buffer);
     }
 }
 
-FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates) : x0_(x0), y0_(y0), x1_(x1), y1_(y1) {
+void Film::clear(int x0, int y0, int x1, int y1) {
+    auto fill = [&](FloatBuffer& buffer, std::size_t c, float value) {
+        for (int y = y0; y < y1; ++y) {
+            const std::size_t begin = std::size_t(y) * width + x0, end = std::size_t(y) * width + x1;
+            std::fill(buffer.begin() + c * begin, buffer.begin() + c * end, value);
+        }
+    };
+    for (const FilmChannelInfo& info : film_channels())
+        fill((*this)[info.channel], std::size_t(info.component_count()), info.empty_value);
+    for (FloatBuffer& buffer : cryptomatte)
+        if (!buffer.empty()) fill(buffer, 2 * std::size_t(cryptomatte_ranks), 0.0f);
+}
+
+FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte)
+    : x0_(x0), y0_(y0), x1_(x1), y1_(y1), cryptomatte_layout_(cryptomatte) {
     const std::size_t pixels = std::size_t(x1 - x0) * std::size_t(y1 - y0);
     // Sums start at 0; first samples at the empty value, which pixels no camera ray reaches keep (outside a
     // fisheye's circle, for example).
@@ -225,6 +237,64 @@ FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates) : x0_(x
             info.combination == SampleCombination::FirstSample ? info.empty_value : 0.0f);
     counts_.assign(pixels, 0u);
     if (noise_estimates) odd_radiance_.assign(3 * pixels, 0.0f);
+    if (cryptomatte.on()) {
+        for (bool on : cryptomatte.types) cryptomatte_types_ += on ? 1 : 0;
+        cryptomatte_.assign(pixels * std::size_t(cryptomatte_types_) * 2 * std::size_t(cryptomatte.ranks), 0.0f);
+    }
+}
+
+// Cycles' film_write_cryptomatte_slots, per type: an id already held gains the weight, a new one takes the first free
+// slot; with none free it is dropped (cryptomatte.h says why).
+void FilmTile::add_cryptomatte(std::size_t pixel, const CryptomatteCoverage& coverage) {
+    const std::size_t ranks = std::size_t(cryptomatte_layout_.ranks);
+    float* const pixel_slots = cryptomatte_.data() + pixel * std::size_t(cryptomatte_types_) * 2 * ranks;
+    for (int e = 0; e < coverage.size(); ++e) {
+        const CryptomatteCoverage::Entry& entry = coverage[e];
+        float* slots = pixel_slots;
+        for (std::size_t t = 0; t < kCryptomatteTypes; ++t) {
+            if (!cryptomatte_layout_.types[t]) continue;
+            const float id = entry.ids[t];
+            if (id != 0.0f)
+                for (std::size_t r = 0; r < ranks; ++r) {
+                    if (slots[2 * r] == id) {
+                        slots[2 * r + 1] += entry.weight;
+                        break;
+                    }
+                    if (slots[2 * r] == 0.0f) {
+                        slots[2 * r] = id;
+                        slots[2 * r + 1] = entry.weight;
+                        break;
+                    }
+                }
+            slots += 2 * ranks;
+        }
+    }
+}
+
+// Each pixel's slots sorted by weight, largest first (Cycles' film_sort_cryptomatte_slots: an insertion sort, which
+// keeps equal weights in the order their ids appeared), the weights divided by the pixel's samples.
+void FilmTile::write_cryptomatte(Film& film) const {
+    const std::size_t ranks = std::size_t(cryptomatte_layout_.ranks);
+    std::size_t k = 0;  // the type's place among the layout's types
+    for (std::size_t t = 0; t < kCryptomatteTypes; ++t) {
+        if (!cryptomatte_layout_.types[t]) continue;
+        FloatBuffer& buffer = film.cryptomatte[t];
+        for (int y = y0_; y < y1_; ++y)
+            for (int x = x0_; x < x1_; ++x) {
+                const std::size_t pixel = index(x, y);
+                const float* slots = cryptomatte_.data() + (pixel * std::size_t(cryptomatte_types_) + k) * 2 * ranks;
+                float* out = buffer.data() + (std::size_t(y) * film.width + x) * 2 * ranks;
+                std::copy(slots, slots + 2 * ranks, out);
+                for (std::size_t r = 1; r < ranks && out[2 * r] != 0.0f; ++r)
+                    for (std::size_t i = r; i > 0 && out[2 * i + 1] > out[2 * i - 1]; --i) {
+                        std::swap(out[2 * i], out[2 * i - 2]);
+                        std::swap(out[2 * i + 1], out[2 * i - 1]);
+                    }
+                const float inv = counts_[pixel] > 0 ? 1.0f / float(counts_[pixel]) : 0.0f;
+                for (std::size_t r = 0; r < ranks; ++r) out[2 * r + 1] *= inv;
+            }
+        ++k;
+    }
 }
 
 float FilmTile::noise_estimate(int x, int y) const {
@@ -274,6 +344,7 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         info.from_sample(record, values);
         for (int k = 0; k < c; ++k) out[k] += values[k];
     }
+    if (!cryptomatte_.empty()) add_cryptomatte(pixel, record.cryptomatte);
     if (record.display_blend) {
         const std::size_t pixels = std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_);
         if (display_sums_.empty()) {
@@ -314,6 +385,7 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
             }
     }
     if (light_passes_) complete_light_passes(film);
+    if (!cryptomatte_.empty()) write_cryptomatte(film);
     if (transparent_background) return;
     FloatBuffer& rgba = film.rgba();
     for (int y = y0_; y < y1_; ++y)

@@ -17,6 +17,7 @@
 #include "motion_vectors.h"
 #include "raysplats/default_init_allocator.h"
 #include "raysplats/gaussian_cloud.h"
+#include "raysplats/render/cryptomatte.h"
 #include "raysplats/render/scene.h"
 #include "raysplats/render/transform.h"
 
@@ -89,6 +90,7 @@ struct GaussianSet {
     bool flat = true;
     std::optional<GaussianShading> shading;  // Scene::set_gaussian_shading: none follows the render settings
     std::uint32_t object_pass_index = 0, material_pass_index = 0;  // Scene::set_gaussian_pass_indices
+    CryptomatteIds cryptomatte_ids{};  // Scene::set_gaussian_cryptomatte_names
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
     // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
     // chunks are compact in space.

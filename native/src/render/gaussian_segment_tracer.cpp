@@ -80,9 +80,18 @@ inline glm::vec3 GaussianSegmentTracer::gaussian_color(const GaussianSet& set, s
     return color;
 }
 
-// A Gaussian at `t` along a camera ray, of weight `weight` in the pixel, joins the Mist pass's sum.
+// A Gaussian at `t` along a camera ray, of weight `weight` in the pixel, joins the Mist pass's sum (when the render
+// has it, RenderSettings::mist_pass).
 inline void GaussianSegmentTracer::add_mist(Segment& seg, const Ray& ray, float t, float weight) const {
-    if (ray.camera_distance >= 0.0f) seg.mist_clearance += weight * mist_clearance(s_.world, ray.camera_distance + t);
+    if (st_.mist_pass && ray.camera_distance >= 0.0f)
+        seg.mist_clearance += weight * mist_clearance(s_.world, ray.camera_distance + t);
+}
+
+// A Gaussian of `set` of weight `weight` in a camera ray's pixel joins the Cryptomatte passes' coverage (when the
+// render has them) under its cloud's ids.
+inline void GaussianSegmentTracer::add_cryptomatte(Segment& seg, const GaussianSet& set, const Ray& ray,
+                                                   float weight) const {
+    if (cryptomatte_ && ray.camera_distance >= 0.0f) seg.cryptomatte.add(set.cryptomatte_ids, weight);
 }
 
 // A Gaussian of weight `weight` in a camera ray's pixel joins the denoiser's guides (Segment::guide_albedo): its
@@ -112,6 +121,7 @@ inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::
     seg.transmittance = t_before * (1.0f - alpha);
     add_mist(seg, ray, t, t_before * alpha);
     add_guides(seg, set, prim, ray, t_before * alpha);
+    add_cryptomatte(seg, set, ray, t_before * alpha);
     if (t_before > 0.5f && seg.transmittance <= 0.5f) {
         seg.depth = t;
         seg.depth_set = &set;
@@ -151,9 +161,11 @@ inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, co
             seg.terminated = true;
             seg.end = h.t;
             add_mist(seg, ray, h.t, seg.transmittance);
-            if (st_.denoising_data) {
+            if (st_.denoising_data || cryptomatte_) {
                 std::uint32_t prim_in_set = h.prim;
-                add_guides(seg, gaussian_of(h.geom, prim_in_set), prim_in_set, ray, seg.transmittance);
+                const GaussianSet& set = gaussian_of(h.geom, prim_in_set);
+                add_guides(seg, set, prim_in_set, ray, seg.transmittance);
+                add_cryptomatte(seg, set, ray, seg.transmittance);
             }
             return true;
         }
@@ -222,6 +234,7 @@ inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L
         seg.depth_set = &set;
         add_mist(seg, ray, tfar, 1.0f);
         add_guides(seg, set, prim, ray, 1.0f);
+        add_cryptomatte(seg, set, ray, 1.0f);
         const glm::vec3 n = set.flat ? set.world_normal(prim) : -ray.d;
         seg.normal = glm::dot(n, ray.d) > 0.0f ? -n : n;
         ++seg.gaussians;

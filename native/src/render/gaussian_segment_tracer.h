@@ -13,6 +13,7 @@
 #include "gaussian_callbacks.h"
 #include "gaussian_shading.h"
 #include "ray.h"
+#include "raysplats/render/cryptomatte.h"
 #include "raysplats/render/render_settings.h"
 #include "render_math.h"
 #include "scene_impl.h"
@@ -46,6 +47,9 @@ struct Segment {
     // integrator's to add. 0 otherwise.
     glm::vec3 guide_albedo{0.0f};
     glm::vec3 guide_normal{0.0f};
+    // Camera rays with Cryptomatte passes (RenderSettings::cryptomatte_*): each Gaussian cloud's weight T_i a_i summed
+    // by its ids, weighted as for mist. The mesh hit is the path integrator's to add. Empty otherwise.
+    CryptomatteCoverage cryptomatte;
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
     // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).
@@ -56,7 +60,8 @@ class GaussianSegmentTracer {
 public:
     // `shadow` gives the light visibility of Gaussian centres (RenderSettings::meshes_shadow_gaussians).
     GaussianSegmentTracer(const Scene::Impl& scene, const RenderSettings& settings, const ShadowVisibility& shadow)
-        : s_(scene), st_(settings), shadow_(shadow), shader_(scene, settings, shadow) {}
+        : s_(scene), st_(settings), shadow_(shadow), shader_(scene, settings, shadow),
+          cryptomatte_(cryptomatte_layout_of(settings).on()) {}
 
     // The segment of one ray, in the settings' compositing mode.
     Segment trace(const Ray& ray, Sampler& rng, Counters& c) const;
@@ -80,6 +85,7 @@ private:
                    Sampler& rng, Counters& c) const;
     void add_mist(Segment& seg, const Ray& ray, float t, float weight) const;
     void add_guides(Segment& seg, const GaussianSet& set, std::uint32_t prim, const Ray& ray, float weight) const;
+    void add_cryptomatte(Segment& seg, const GaussianSet& set, const Ray& ray, float weight) const;
     void init_lane(LaneState& L) const;
     static void count_traversal(LaneState& L, Counters& c);
     bool consume_gather(Segment& seg, LaneState& L, const Ray& ray, float end, float tfar, unsigned geom,
@@ -94,6 +100,7 @@ private:
     const RenderSettings& st_;
     const ShadowVisibility& shadow_;
     GaussianShader shader_;
+    const bool cryptomatte_;  // the render has Cryptomatte passes
 };
 
 }  // namespace raysplats

@@ -120,6 +120,8 @@ struct PathIntegrator::PathState {
     float mist_clearance = 0.0f, camera_transmittance = 1.0f;
     // The denoiser's guides (SampleRecord::denoising_albedo, RenderSettings::denoising_data), summed like mist.
     glm::vec3 guide_albedo{0.0f}, guide_normal{0.0f};
+    // The Cryptomatte passes' coverage (SampleRecord::cryptomatte), weighted like mist.
+    CryptomatteCoverage cryptomatte;
     std::uint32_t camera_gaussians = 0;  // composited or accepted along the camera segment
     // depth is the camera segment's mesh hit, whose normal, object and material the surface gives (mesh_data_passes)
     bool normal_at_mesh = false;
@@ -178,6 +180,10 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
     seg.guide_albedo = s1.guide_albedo + s1.transmittance * s2.guide_albedo;
     seg.guide_normal = s1.guide_normal + s1.transmittance * s2.guide_normal;
+    if (cryptomatte_) {
+        seg.cryptomatte = s1.cryptomatte;
+        seg.cryptomatte.add_scaled(s2.cryptomatte, s1.transmittance);
+    }
     if (s1.depth < kInf) {
         seg.depth = s1.depth;
         seg.normal = s1.normal;
@@ -238,6 +244,7 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
         p.mist_clearance += p.camera_transmittance * seg.mist_clearance;
         p.guide_albedo += p.camera_transmittance * seg.guide_albedo;
         p.guide_normal += p.camera_transmittance * seg.guide_normal;
+        if (cryptomatte_) p.cryptomatte.add_scaled(seg.cryptomatte, p.camera_transmittance);
         if (p.depth == kInf && seg.depth < kInf) {
             p.depth = seg.depth;
             p.normal = seg.normal;
@@ -314,10 +321,11 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     if (gaussian_bounce && p.camera_segment) {
         p.alpha = 1.0f;  // the mesh behind covers the pixel
         add_mesh_mist(p, seg);
-        if (st_.denoising_data || p.normal_at_mesh) {
+        if (st_.denoising_data || p.normal_at_mesh || cryptomatte_) {
             const Surface sf = surface(seg, p.ray);
             const bool entering = glm::dot(sf.ng, p.ray.d) < 0.0f;
             if (st_.denoising_data) add_mesh_guides(p, seg, sf, entering);
+            if (cryptomatte_) add_mesh_cryptomatte(p, seg, sf);
             if (p.normal_at_mesh) {
                 p.normal = entering ? sf.ng : -sf.ng;
                 mesh_data_passes(p, seg, sf);
@@ -327,11 +335,21 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     return false;
 }
 
-// The camera segment's mesh hit `seg` joins the Mist pass's sum with the transmittance in front of it (the path
-// stops on it: its alpha is 1 in the sum, as Cycles' is for an opaque surface).
+// The camera segment's mesh hit `seg` joins the Mist pass's sum (when the render has it) with the transmittance in
+// front of it (the path stops on it: its alpha is 1 in the sum, as Cycles' is for an opaque surface).
 void PathIntegrator::add_mesh_mist(PathState& p, const Segment& seg) const {
+    if (!st_.mist_pass) return;
     p.mist_clearance += p.camera_transmittance * seg.transmittance *
                         mist_clearance(s_.world, p.ray.camera_distance + seg.t);
+}
+
+// The camera segment's mesh hit `seg` (surface `sf`) joins the Cryptomatte passes' coverage with the same weight as
+// mist: its object's, its face's material's and its asset's ids.
+void PathIntegrator::add_mesh_cryptomatte(PathState& p, const Segment& seg, const Surface& sf) const {
+    const MeshRecord& mesh = *s_.meshes[s_.top[seg.top_geom].index];
+    const float material = s_.materials.empty() ? 0.0f : s_.materials[sf.material].cryptomatte_id;
+    p.cryptomatte.add({mesh.cryptomatte_object, material, mesh.cryptomatte_asset},
+                      p.camera_transmittance * seg.transmittance);
 }
 
 // The camera segment's mesh hit `seg` (surface `sf`) joins the denoiser's guides with the transmittance in front of
@@ -395,6 +413,7 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
         p.alpha = 1.0f;
         add_mesh_mist(p, seg);
         if (st_.denoising_data) add_mesh_guides(p, seg, sf, entering);
+        if (cryptomatte_) add_mesh_cryptomatte(p, seg, sf);
         if (p.depth == kInf) {
             p.depth = seg.t;
             p.normal = ng;
@@ -533,6 +552,7 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.denoising_albedo = {p.guide_albedo.x, p.guide_albedo.y, p.guide_albedo.z};
     record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};
     record.gaussian_count = float(p.camera_gaussians);
+    if (cryptomatte_) record.cryptomatte = p.cryptomatte;
     return record;
 }
 

@@ -32,7 +32,8 @@ public:
     PathIntegrator(const Scene::Impl& scene, const RenderSettings& settings, const GaussianSegmentTracer& tracer,
                    const ShadowVisibility& shadow, const MotionVectorProjector& vectors)
         : s_(scene), st_(settings), tracer_(tracer), shadow_(shadow), vectors_(vectors),
-          world_(glm::vec3(scene.world.color[0], scene.world.color[1], scene.world.color[2]) * scene.world.strength) {}
+          world_(glm::vec3(scene.world.color[0], scene.world.color[1], scene.world.color[2]) * scene.world.strength),
+          cryptomatte_(cryptomatte_layout_of(settings).on()) {}
 
     // One path from a camera ray: its radiance, and the coverage, depth and normal of the primary segment.
     // `first`: the camera segment when it was already traced (GaussianSegmentTracer::trace_packet).
@@ -64,6 +65,7 @@ private:
     void add_mesh_mist(PathState& p, const Segment& seg) const;
     void mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const;
     void add_mesh_guides(PathState& p, const Segment& seg, const Surface& sf, bool entering) const;
+    void add_mesh_cryptomatte(PathState& p, const Segment& seg, const Surface& sf) const;
     SampleRecord sample_record(PathState& p) const;
     // The light passes (RenderSettings::light_passes, SampleRecord::light).
     void add_emitted(PathState& p, const glm::vec3& light, int level, bool world = false) const;
@@ -80,6 +82,7 @@ private:
     const MotionVectorProjector& vectors_;
     glm::vec3 world_;
     const Material default_material_{};  // for meshes of a scene without materials
+    const bool cryptomatte_;             // the render has Cryptomatte passes
 };
 
 }  // namespace raysplats

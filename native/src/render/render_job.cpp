@@ -125,6 +125,9 @@ Film RenderJob::snapshot(const std::vector<FilmChannel>& channels) const {
     Film film;
     film.width = snapshot_.width, film.height = snapshot_.height, film.stats = snapshot_.stats;
     for (FilmChannel channel : channels) film[channel] = snapshot_[channel];
+    // (The Cryptomatte passes are not film channels: copied whenever the render has them.)
+    film.cryptomatte = snapshot_.cryptomatte;
+    film.cryptomatte_ranks = snapshot_.cryptomatte_ranks;
     return film;
 }
 

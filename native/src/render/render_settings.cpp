@@ -35,6 +35,8 @@ void RenderSettings::validate() const {
             "render region " + std::to_string(region_width) + " x " + std::to_string(region_height) + " at (" +
                 std::to_string(region_x) + ", " + std::to_string(region_y) + ") is not inside the " +
                 std::to_string(width) + " x " + std::to_string(height) + " image");
+    require(cryptomatte_levels >= 1 && cryptomatte_levels <= 16,
+            "cryptomatte levels must be in 1 .. 16 (got " + std::to_string(cryptomatte_levels) + ")");
     require(tile_size >= 1 && tile_size <= 4096, "tile size must be in 1 .. 4096 (got " + std::to_string(tile_size) + ")");
 }
 
@@ -149,6 +151,16 @@ const ParameterTable<RenderSettings>& render_setting_parameters() {
           &member<&S::denoising_data>, {}},
          {"light_passes", T::Bool, "fill the light passes' channels (Emission; Diffuse, Glossy and Transmission Direct, "
           "Indirect and Color)", &member<&S::light_passes>, {}},
+         {"mist_pass", T::Bool, "fill the Mist channel (off: nothing is computed for it, it holds 1)",
+          &member<&S::mist_pass>, {}},
+         {"cryptomatte_object", T::Bool, "fill the Cryptomatte Object passes (ids of object names, ranked by coverage)",
+          &member<&S::cryptomatte_object>, {}},
+         {"cryptomatte_material", T::Bool, "fill the Cryptomatte Material passes (ids of material names)",
+          &member<&S::cryptomatte_material>, {}},
+         {"cryptomatte_asset", T::Bool, "fill the Cryptomatte Asset passes (ids of the top-level parents' names)",
+          &member<&S::cryptomatte_asset>, {}},
+         {"cryptomatte_levels", T::Integer, "ids kept per pixel in each Cryptomatte pass (1 .. 16, rounded up to even)",
+          &member<&S::cryptomatte_levels>, {}},
          {"adaptive_sampling", T::Bool, "pixels stop sampling once their noise is below the threshold (Cycles' Noise Threshold)",
           &member<&S::adaptive_sampling>, {}},
          {"adaptive_threshold", T::Real, "noise level at which a pixel stops sampling (0: automatic from samples)",

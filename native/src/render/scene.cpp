@@ -13,6 +13,7 @@
 #include "gaussian_callbacks.h"
 #include "microfacet_tables.h"
 #include "raysplats/errors.h"
+#include "raysplats/render/cryptomatte.h"
 #include "render_math.h"
 #include "scene_impl.h"
 
@@ -235,6 +236,8 @@ void Scene::update_mesh(std::uint32_t index, const MeshDesc& mesh) {
     rec->motion_linear = impl_->meshes[index]->motion_linear;
     rec->top_geom_id = impl_->meshes[index]->top_geom_id;
     rec->dirty = true;
+    rec->cryptomatte_object = impl_->meshes[index]->cryptomatte_object;
+    rec->cryptomatte_asset = impl_->meshes[index]->cryptomatte_asset;
     impl_->meshes[index] = std::move(rec);
 }
 
@@ -339,6 +342,31 @@ bool Scene::Impl::has_motion() const {
 }
 
 bool Scene::has_motion() const { return impl_->has_motion(); }
+
+namespace {
+
+// A name's Cryptomatte id; "" has none.
+float cryptomatte_id_or_none(std::string_view name) { return name.empty() ? 0.0f : cryptomatte_id_of(name); }
+
+}  // namespace
+
+void Scene::set_gaussian_cryptomatte_names(std::uint32_t index, std::string_view object, std::string_view material,
+                                           std::string_view asset) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    impl_->gaussians[index]->cryptomatte_ids = {cryptomatte_id_or_none(object), cryptomatte_id_or_none(material),
+                                                cryptomatte_id_or_none(asset)};
+}
+
+void Scene::set_mesh_cryptomatte_names(std::uint32_t index, std::string_view object, std::string_view asset) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    impl_->meshes[index]->cryptomatte_object = cryptomatte_id_or_none(object);
+    impl_->meshes[index]->cryptomatte_asset = cryptomatte_id_or_none(asset);
+}
+
+void Scene::set_material_cryptomatte_name(std::uint32_t index, std::string_view material) {
+    if (index >= impl_->materials.size()) throw InvalidArgument(at("material", index) + " does not exist");
+    impl_->materials[index].cryptomatte_id = cryptomatte_id_or_none(material);
+}
 
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());

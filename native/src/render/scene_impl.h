@@ -28,6 +28,8 @@ struct MeshRecord {
     std::vector<Matrix4> motion;
     std::vector<glm::mat3> motion_linear;
     FrameMotion frame_motion;  // Scene::set_mesh_frame_motion's (the Vector pass)
+    // Scene::set_mesh_cryptomatte_names (kept by update_mesh): the object's and the asset's Cryptomatte ids.
+    float cryptomatte_object = 0.0f, cryptomatte_asset = 0.0f;
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
     // The normal matrix where a ray of shutter time `time` sees the mesh: with motion, the inverse transpose of the

@@ -21,8 +21,8 @@ namespace raysplats {
 // What one tile keeps between sample passes: its sums, where its pixels' last camera segments ended (+inf: escaped
 // or not traced yet) and how many passes it has completed.
 struct TileState {
-    TileState(const PixelRect& r, bool noise_estimates)
-        : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates),
+    TileState(const PixelRect& r, bool noise_estimates, const CryptomatteLayout& cryptomatte = {})
+        : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte),
           segment_end(std::size_t(r.width()) * std::size_t(r.height()), kInf) {}
     FilmTile samples;
     std::vector<float> segment_end;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "raysplats/default_init_allocator.h"
+#include "raysplats/render/cryptomatte.h"
 
 namespace raysplats {
 
@@ -55,7 +56,8 @@ struct SampleRecord {
     // Mist (Cycles' film_write_data_passes): 1 - sum_i w_i (1 - mist(d_i)) over everything the camera ray composited
     // or stopped on, w_i its weight in the pixel (the transmittance in front of it times its alpha; a mesh it stopped
     // on, or the Gaussian that terminated compositing, takes all the transmittance left), d_i its distance from the
-    // camera (src/render/mist.h). 1 where the ray sees only the world.
+    // camera (src/render/mist.h). 1 where the ray sees only the world, and everywhere without
+    // RenderSettings::mist_pass (nothing is computed for it then).
     float mist = 1.0f;
     // The denoiser's guides (RenderSettings::denoising_data; 0 without it), as Cycles' Denoising Albedo and Normal
     // (kernel/film/denoising_passes.h): the surface colour and the normal the camera ray sees, each weighted as the
@@ -97,6 +99,9 @@ struct SampleRecord {
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
+    // The Cryptomatte passes (RenderSettings::cryptomatte_*; empty without them): the weight of each thing the camera
+    // ray composited, weighted as mist weighs it (w_i above), by its ids (raysplats/render/cryptomatte.h).
+    CryptomatteCoverage cryptomatte;
 };
 
 enum class FilmChannel : std::uint8_t {
@@ -176,6 +181,11 @@ struct Film {
     int width = 0;
     int height = 0;
     std::array<FloatBuffer, kFilmChannelCount> channels;
+    // The Cryptomatte passes the render filled (by CryptomatteType; empty for the others): per pixel `ranks` (id,
+    // coverage) pairs sorted by coverage, largest first, i.e. the passes' RGBA layers one after the other
+    // (raysplats/render/cryptomatte.h has the layout).
+    std::array<FloatBuffer, kCryptomatteTypes> cryptomatte;
+    int cryptomatte_ranks = 0;
     RenderStats stats;
 
     FloatBuffer& operator[](FilmChannel c) { return channels[std::size_t(c)]; }
@@ -200,7 +210,9 @@ struct Film {
     // Sizes the buffers without writing them (their contents are unspecified until written): for writers that
     // write every pixel, such as the renderer.
     void allocate(int width, int height);
-    // Writes the empty values into pixels [x0, x1) x [y0, y1).
+    // Sizes the Cryptomatte buffers of `layout`'s types (unwritten, as allocate()); the others are emptied.
+    void allocate_cryptomatte(const CryptomatteLayout& layout);
+    // Writes the empty values into pixels [x0, x1) x [y0, y1) (Cryptomatte: no ids).
     void clear(int x0, int y0, int x1, int y1);
     std::size_t pixel_count() const { return std::size_t(width) * std::size_t(height); }
     const float* pixel(int x, int y) const { return &rgba()[4 * (std::size_t(y) * width + x)]; }
@@ -217,8 +229,9 @@ struct Film {
 class FilmTile {
 public:
     // Pixels [x0, x1) x [y0, y1) of the film. With `noise_estimates`, the tile also sums each pixel's odd samples'
-    // radiance (Cycles' adaptive auxiliary buffer), for noise_estimate().
-    FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false);
+    // radiance (Cycles' adaptive auxiliary buffer), for noise_estimate(). With a `cryptomatte` layout that is on, it
+    // keeps each pixel's ids and their summed weights for those passes (raysplats/render/cryptomatte.h).
+    FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false, const CryptomatteLayout& cryptomatte = {});
     // Sample number `sample` of film pixel (x, y): the pixel's samples so far, sample_count(x, y).
     void add_sample(int x, int y, int sample, const SampleRecord& record);
     // A sample of film pixel (x, y) whose camera ray does not exist (jittered outside a fisheye's circle): it counts,
@@ -241,7 +254,8 @@ public:
     // Writes the tile's pixels into `film`, each as the mean of its own samples (a pixel without any: the empty
     // values). Combined's alpha is coverage with a transparent background (RenderSettings::transparent_background)
     // and 1 otherwise. With light passes, Emission gets the display blend's own part and the Direct and Indirect
-    // passes are divided by their Color (SampleRecord::light).
+    // passes are divided by their Color (SampleRecord::light). The Cryptomatte passes go to the film's buffers of the
+    // tile's layout (Film::allocate_cryptomatte).
     void write_to(Film& film, bool transparent_background) const;
     // Pixels [x0, x1) x [y0, y1) of the film.
     int x0() const { return x0_; }
@@ -265,6 +279,13 @@ private:
     // space, per pixel the sums of SampleRecord::front_emission (3; empty until a sample has them).
     bool light_passes_ = false;
     std::vector<float> front_emission_sums_;
+    // Cryptomatte: per pixel, per type of the layout in CryptomatteType order, `ranks` slots (id, summed weight) in
+    // the order their ids first appeared (id 0: free). Empty without Cryptomatte passes.
+    void add_cryptomatte(std::size_t pixel, const CryptomatteCoverage& coverage);
+    void write_cryptomatte(Film& film) const;
+    CryptomatteLayout cryptomatte_layout_;
+    int cryptomatte_types_ = 0;  // types the layout has
+    std::vector<float> cryptomatte_;
 };
 
 }  // namespace raysplats

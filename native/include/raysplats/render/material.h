@@ -56,6 +56,7 @@ struct Material {
     float emission_strength = 1.0f;  // emitted radiance = emission_color * emission_strength
     float alpha = 1.0f;              // coverage; 1 - alpha of the rays pass through unchanged
     std::uint32_t pass_index = 0;    // Blender's Material.pass_index, which the Material Index pass shows
+    float cryptomatte_id = 0.0f;     // its name's Cryptomatte id (Scene::set_material_cryptomatte_name; 0: none)
 
     // Throws InvalidArgument (naming `what`) for NaN, out-of-range values or an inconsistent texture.
     void validate(const char* what) const;

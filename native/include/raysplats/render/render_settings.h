@@ -89,6 +89,14 @@ struct RenderSettings {
     // Indirect and Color). Off, they stay 0 and nothing is computed for them; on or off, the other channels are the
     // same.
     bool light_passes = false;
+    // The Mist film channel (SampleRecord::mist). Off, nothing is computed for it and it holds 1 (only the world).
+    bool mist_pass = false;
+    // The Cryptomatte passes (raysplats/render/cryptomatte.h): which kinds of id the film ranks per pixel, and
+    // Blender's Levels (ranks per pixel, 1 .. 16, rounded up to even). All off, nothing is computed for them.
+    bool cryptomatte_object = false;
+    bool cryptomatte_material = false;
+    bool cryptomatte_asset = false;
+    int cryptomatte_levels = 6;
 
     // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
     // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "raysplats/gaussian_cloud.h"
@@ -125,6 +126,14 @@ public:
     void set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
     // Whether some object has motion (set_*_motion with two matrices or more).
     bool has_motion() const;
+    // The names whose ids the Cryptomatte passes give (raysplats/render/cryptomatte.h; "" gives none): Gaussian cloud
+    // `index`'s object, the material its Gaussians count as (the add-on gives its object's first material, as for the
+    // Material Index pass) and its asset (Cycles: the object's top-level parent, else the object itself); a mesh's
+    // object and asset (its faces' materials give theirs); a material's. None until set. No rebuild is needed.
+    void set_gaussian_cryptomatte_names(std::uint32_t index, std::string_view object, std::string_view material,
+                                        std::string_view asset);
+    void set_mesh_cryptomatte_names(std::uint32_t index, std::string_view object, std::string_view asset);
+    void set_material_cryptomatte_name(std::uint32_t index, std::string_view material);
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).
