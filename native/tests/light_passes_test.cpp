@@ -165,12 +165,15 @@ TEST(LightPasses, OffByDefaultAndChangesNothingElse) {
             for (std::size_t k = 0; k < kFilmChannelCount; ++k) {
                 const auto c = FilmChannel(k);
                 const FloatBuffer &a = off[c], &b = on[c];
-                ASSERT_EQ(a.size(), b.size());
-                if (k >= std::size_t(FilmChannel::Emission)) {
-                    for (float v : a) ASSERT_EQ(v, 0.0f) << film_channels()[k].key;
+                if (k >= std::size_t(FilmChannel::Emission) &&
+                    k <= std::size_t(FilmChannel::TransmissionColor)) {
+                    // Without the setting the film does not hold them at all (computed_film_channels).
+                    ASSERT_TRUE(a.empty()) << film_channels()[k].key;
+                    ASSERT_EQ(b.size(), 3 * on.pixel_count()) << film_channels()[k].key;
                     for (float v : b) on_sum += v;
                     continue;
                 }
+                ASSERT_EQ(a.size(), b.size());
                 for (std::size_t i = 0; i < a.size(); ++i)
                     ASSERT_EQ(std::memcmp(&a[i], &b[i], sizeof(float)), 0) << film_channels()[k].key << " " << i;
             }

@@ -206,7 +206,8 @@ def _take_image(state, denoise=False):
     if job.wait(0.0):
         state.job = None  # (before result(), which raises the render's error: reported once, not every redraw)
         film = job.result()
-        if denoise and film["samples"] > 0 and denoiser.available():
+        # (A job started before preview denoising was turned on has no guides: its image is drawn as rendered.)
+        if denoise and film["samples"] > 0 and denoiser.available() and "denoising_albedo" in film:
             film["rgba"][..., :3] = denoiser.denoise(film["rgba"], albedo=film["denoising_albedo"],
                                                      normal=film["denoising_normal"])
     elif job.snapshot_samples > state.shown_samples:

@@ -192,16 +192,38 @@ const std::array<FilmChannelInfo, kFilmChannelCount>& film_channels() { return k
 
 const FilmChannelInfo& film_channel_info(FilmChannel channel) { return film_channels()[std::size_t(channel)]; }
 
+FilmChannelSet all_film_channels() {
+    FilmChannelSet set;
+    set.fill(true);
+    return set;
+}
+
+FilmChannelSet computed_film_channels(const RenderSettings& settings) {
+    FilmChannelSet set = all_film_channels();
+    set[std::size_t(FilmChannel::DenoisingAlbedo)] = set[std::size_t(FilmChannel::DenoisingNormal)] =
+        settings.denoising_data;
+    for (std::size_t k = 0; k < kLightPassCount; ++k)
+        set[std::size_t(FilmChannel::Emission) + k] = settings.light_passes;
+    return set;
+}
+
 void Film::resize(int w, int h) {
     allocate(w, h);
     clear(0, 0, w, h);
 }
 
-void Film::allocate(int w, int h) {
+void Film::allocate(int w, int h, const FilmChannelSet& channels) {
     width = w;
     height = h;
-    for (const FilmChannelInfo& info : film_channels())
-        (*this)[info.channel].resize(std::size_t(info.component_count()) * pixel_count());
+    for (const FilmChannelInfo& info : film_channels()) {
+        FloatBuffer& buffer = (*this)[info.channel];
+        if (channels[std::size_t(info.channel)]) {
+            buffer.resize(std::size_t(info.component_count()) * pixel_count());
+        } else {
+            buffer.clear();
+            buffer.shrink_to_fit();
+        }
+    }
 }
 
 void Film::allocate_cryptomatte(const CryptomatteLayout& layout) {
@@ -221,18 +243,21 @@ void Film::clear(int x0, int y0, int x1, int y1) {
         }
     };
     for (const FilmChannelInfo& info : film_channels())
-        fill((*this)[info.channel], std::size_t(info.component_count()), info.empty_value);
+        if (!(*this)[info.channel].empty())
+            fill((*this)[info.channel], std::size_t(info.component_count()), info.empty_value);
     for (FloatBuffer& buffer : cryptomatte)
         if (!buffer.empty()) fill(buffer, 2 * std::size_t(cryptomatte_ranks), 0.0f);
 }
 
-FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte)
+FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte,
+                   const FilmChannelSet& channels)
     : x0_(x0), y0_(y0), x1_(x1), y1_(y1), cryptomatte_layout_(cryptomatte) {
     const std::size_t pixels = std::size_t(x1 - x0) * std::size_t(y1 - y0);
     // Sums start at 0; first samples at the empty value, which pixels no camera ray reaches keep (outside a
-    // fisheye's circle, for example).
+    // fisheye's circle, for example). A channel left out stays empty, and add_sample and write_to skip it.
     for (const FilmChannelInfo& info : film_channels())
-        values_[std::size_t(info.channel)].assign(
+        if (channels[std::size_t(info.channel)])
+            values_[std::size_t(info.channel)].assign(
             std::size_t(info.component_count()) * pixels,
             info.combination == SampleCombination::FirstSample ? info.empty_value : 0.0f);
     counts_.assign(pixels, 0u);
@@ -333,10 +358,11 @@ void FilmTile::add_sample(int x, int y, int sample, const SampleRecord& record) 
         for (int c = 0; c < 3; ++c) odd_radiance_[3 * pixel + std::size_t(c)] += record.radiance[std::size_t(c)];
     float values[8];
     for (const FilmChannelInfo& info : film_channels()) {
-        // Without light passes their sums stay 0: nothing to add.
-        if (!record.light_passes && is_light_pass(info.channel)) continue;
+        // Without light passes their sums stay 0: nothing to add. A channel the tile leaves out has no sums.
+        std::vector<float>& sums = values_[std::size_t(info.channel)];
+        if ((!record.light_passes && is_light_pass(info.channel)) || sums.empty()) continue;
         const int c = info.component_count();
-        float* out = values_[std::size_t(info.channel)].data() + std::size_t(c) * pixel;
+        float* out = sums.data() + std::size_t(c) * pixel;
         if (info.combination == SampleCombination::FirstSample) {
             if (sample == 0) info.from_sample(record, out);
             continue;
@@ -361,6 +387,7 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
     for (const FilmChannelInfo& info : film_channels()) {
         const std::size_t c = std::size_t(info.component_count());
         const std::vector<float>& values = values_[std::size_t(info.channel)];
+        if (values.empty()) continue;  // (a channel the render leaves out)
         FloatBuffer& buffer = film[info.channel];
         const bool mean = info.combination == SampleCombination::Mean;
         for (int y = y0_; y < y1_; ++y)

@@ -168,14 +168,14 @@ private:
 // Sample pass `sample`: every tile renders its next sample, the tiles in parallel. A tile's state is created by the
 // thread that renders its first pass (parallel first touch of its sums).
 void render_pass(int sample, const TileGrid& grid, const TileSampler& sampler, bool noise_estimates,
-                 const CryptomatteLayout& cryptomatte, std::vector<std::unique_ptr<TileState>>& tiles,
-                 PassProgress& progress, RenderCounters& counters) {
+                 const CryptomatteLayout& cryptomatte, const FilmChannelSet& channels,
+                 std::vector<std::unique_ptr<TileState>>& tiles, PassProgress& progress, RenderCounters& counters) {
     tbb::parallel_for(tbb::blocked_range<int>(0, grid.count, 1), [&](const tbb::blocked_range<int>& range) {
         for (int t = range.begin(); t != range.end(); ++t) {
             // Polled per tile and pass (at most 32 x 32 samples): a cancelled tile keeps its completed passes.
             if (progress.cancelled()) continue;
             std::unique_ptr<TileState>& tile = tiles[std::size_t(t)];
-            if (!tile) tile = std::make_unique<TileState>(grid.rect(t), noise_estimates, cryptomatte);
+            if (!tile) tile = std::make_unique<TileState>(grid.rect(t), noise_estimates, cryptomatte, channels);
             Counters tile_counters;
             if (sampler.samples(*tile)) counters.camera_samples += sampler.sample(*tile, tile_counters);
             tile->samples_done = sample + 1;
@@ -214,7 +214,8 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     build_clock.stop();
     const Scene::Impl& impl = scene.impl();
 
-    film.allocate(settings.width, settings.height);  // every pixel is written at the end (or by a snapshot)
+    const FilmChannelSet channels = computed_film_channels(settings);
+    film.allocate(settings.width, settings.height, channels);  // every pixel is written at the end (or by a snapshot)
     const CryptomatteLayout cryptomatte = cryptomatte_layout_of(settings);
     film.allocate_cryptomatte(cryptomatte);
     const int w = settings.width, h = settings.height;
@@ -251,7 +252,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     RenderStats& stats = film.stats;
     for (int sample = 0; sample < settings.samples; ++sample) {
         PhaseClock sample_clock(stats.sample_seconds, stats.sample_cpu_seconds);
-        render_pass(sample, grid, sampler, adaptive.on(), cryptomatte, tiles, pass_progress, counters);
+        render_pass(sample, grid, sampler, adaptive.on(), cryptomatte, channels, tiles, pass_progress, counters);
         // A pass counts when every tile finished it, even if a cancel came after the last one did.
         const bool complete = pass_progress.tile_passes_done() >= (long long)(sample + 1) * grid.count;
         if (complete) samples_done = sample + 1;

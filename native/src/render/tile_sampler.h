@@ -21,8 +21,9 @@ namespace raysplats {
 // What one tile keeps between sample passes: its sums, where its pixels' last camera segments ended (+inf: escaped
 // or not traced yet) and how many passes it has completed.
 struct TileState {
-    TileState(const PixelRect& r, bool noise_estimates, const CryptomatteLayout& cryptomatte = {})
-        : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte),
+    TileState(const PixelRect& r, bool noise_estimates, const CryptomatteLayout& cryptomatte = {},
+              const FilmChannelSet& channels = all_film_channels())
+        : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte, channels),
           segment_end(std::size_t(r.width()) * std::size_t(r.height()), kInf) {}
     FilmTile samples;
     std::vector<float> segment_end;

@@ -13,6 +13,7 @@
 
 #include "raysplats/default_init_allocator.h"
 #include "raysplats/render/cryptomatte.h"
+#include "raysplats/render/render_settings.h"
 
 namespace raysplats {
 
@@ -139,6 +140,15 @@ struct FilmChannelInfo {
 const std::array<FilmChannelInfo, kFilmChannelCount>& film_channels();
 const FilmChannelInfo& film_channel_info(FilmChannel channel);
 
+// Which channels a film holds, indexed by FilmChannel.
+using FilmChannelSet = std::array<bool, kFilmChannelCount>;
+// Every channel.
+FilmChannelSet all_film_channels();
+// The channels a render with `settings` computes: a channel whose pass needs a setting (the denoiser's guides
+// denoising_data, the light passes light_passes) is left out without it, so that it costs neither memory nor work
+// (at 3840 x 2160 the light passes alone are 1 GB of film and as much again in its tiles).
+FilmChannelSet computed_film_channels(const RenderSettings& settings);
+
 struct RenderStats {
     double render_seconds = 0.0;
     // Camera samples taken (one per pixel and sample, each a primary ray unless the camera has none there, outside a
@@ -207,12 +217,12 @@ struct Film {
 
     // An empty film: every channel at its empty value.
     void resize(int width, int height);
-    // Sizes the buffers without writing them (their contents are unspecified until written): for writers that
-    // write every pixel, such as the renderer.
-    void allocate(int width, int height);
+    // Sizes the buffers of `channels` without writing them (their contents are unspecified until written), and
+    // leaves the others empty: for writers that write every pixel, such as the renderer.
+    void allocate(int width, int height, const FilmChannelSet& channels = all_film_channels());
     // Sizes the Cryptomatte buffers of `layout`'s types (unwritten, as allocate()); the others are emptied.
     void allocate_cryptomatte(const CryptomatteLayout& layout);
-    // Writes the empty values into pixels [x0, x1) x [y0, y1) (Cryptomatte: no ids).
+    // Writes the empty values into pixels [x0, x1) x [y0, y1) of every channel it holds (Cryptomatte: no ids).
     void clear(int x0, int y0, int x1, int y1);
     std::size_t pixel_count() const { return std::size_t(width) * std::size_t(height); }
     const float* pixel(int x, int y) const { return &rgba()[4 * (std::size_t(y) * width + x)]; }
@@ -230,8 +240,10 @@ class FilmTile {
 public:
     // Pixels [x0, x1) x [y0, y1) of the film. With `noise_estimates`, the tile also sums each pixel's odd samples'
     // radiance (Cycles' adaptive auxiliary buffer), for noise_estimate(). With a `cryptomatte` layout that is on, it
-    // keeps each pixel's ids and their summed weights for those passes (raysplats/render/cryptomatte.h).
-    FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false, const CryptomatteLayout& cryptomatte = {});
+    // keeps each pixel's ids and their summed weights for those passes (raysplats/render/cryptomatte.h). Only
+    // `channels` are summed (the film written to holds at least those).
+    FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false, const CryptomatteLayout& cryptomatte = {},
+             const FilmChannelSet& channels = all_film_channels());
     // Sample number `sample` of film pixel (x, y): the pixel's samples so far, sample_count(x, y).
     void add_sample(int x, int y, int sample, const SampleRecord& record);
     // A sample of film pixel (x, y) whose camera ray does not exist (jittered outside a fisheye's circle): it counts,
