@@ -49,7 +49,8 @@ EXPECTED = {
     "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
     "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
     "RENDER_PASS_BULK_SET": since((4, 2), True, False),
-    "RENAMED_RENDER_PASSES": since((5, 0), {"IndexOB": "Object Index", "IndexMA": "Material Index"}, {}),
+    "RENAMED_RENDER_PASSES": since((5, 0), {"IndexOB": "Object Index", "IndexMA": "Material Index",
+                                            "Env": "Environment"}, {}),
     "NEWER_THAN_TESTED": since((5, 2), False, False),  # every Blender in this table was tested
 }
 # Names in compat.py that are the same on every version (layouts, keys), not probed.

@@ -224,10 +224,12 @@ def set_render_pass(render_pass, values):
         render_pass.rect = np.ascontiguousarray(values, dtype=np.float32).reshape(-1, render_pass.channels)
 
 
-# Blender 5.0 renamed render passes (RE_PASSNAME_* in the render pipeline's header): "IndexOB" and "IndexMA" became
-# "Object Index" and "Material Index", as Cycles registers them there (its other renames are of passes this engine
-# does not have). The core's film table names them as before 5.0.
-RENAMED_RENDER_PASSES = {"IndexOB": "Object Index", "IndexMA": "Material Index"} if _since(5, 0) else {}
+# Blender 5.0 renamed render passes (RE_PASSNAME_* in the render pipeline's header): "IndexOB", "IndexMA" and "Env"
+# became "Object Index", "Material Index" and "Environment", as Cycles registers them there (measured: Cycles' Render
+# Layers node sockets in 3.4 and 5.0; its other renames are of passes this engine does not have). The core's film
+# table names them as before 5.0.
+RENAMED_RENDER_PASSES = ({"IndexOB": "Object Index", "IndexMA": "Material Index", "Env": "Environment"}
+                         if _since(5, 0) else {})
 
 
 def render_pass_name(name):

@@ -10,7 +10,10 @@ from ..blender import compat
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
                     "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
-                    "IndexMA": "use_pass_material_index"}
+                    "IndexMA": "use_pass_material_index", "Env": "use_pass_environment"}
+# Passes whose check box is the Cycles add-on's (its view-layer property group, which every Blender here has), so that
+# one check box serves both engines; without Cycles, a RaySplats check box.
+_CYCLES_TOGGLES = {"Shadow Catcher": "use_pass_shadow_catcher"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -33,6 +36,9 @@ def _toggle(view_layer, channel):
         return None
     if name in _BLENDER_TOGGLES:
         return view_layer, _BLENDER_TOGGLES[name]
+    cycles = getattr(view_layer, "cycles", None)
+    if name in _CYCLES_TOGGLES and hasattr(cycles, _CYCLES_TOGGLES[name]):
+        return cycles, _CYCLES_TOGGLES[name]
     return view_layer.raysplats_passes, "use_pass_" + channel["key"]
 
 

@@ -53,6 +53,20 @@ def pass_indices(obj):
     return int(obj.pass_index), int(material.pass_index) if material is not None else 0
 
 
+def masks(obj, view_layer, parent=None):
+    """(holdout, shadow catcher) of an object drawn in the view layer, as Cycles reads them (blender/object.cpp): held
+    out by its Holdout or a collection's in the view layer (Object.holdout_get), an instance by its instancer's; a
+    shadow catcher by its own Shadow Catcher or its instancer's."""
+    source = (parent or obj).original
+    return (bool(source.holdout_get(view_layer=view_layer)),
+            bool(obj.original.is_shadow_catcher or source.is_shadow_catcher))
+
+
+def instance_masks(instance, view_layer):
+    """masks() of a depsgraph object instance."""
+    return masks(instance.object, view_layer, instance.parent if instance.is_instance else None)
+
+
 def _world(scene):
     world = scene.world
     if world is None:
@@ -193,6 +207,8 @@ class SceneSync:
         self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
         self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
         self.pass_indices = {}  # original object (drawn once) -> pass_indices() as given to the native scene
+        self.view_layer = depsgraph.view_layer
+        self.masks = {}  # original object (drawn once) -> masks() as given to the native scene
         self._build(depsgraph)
 
     @staticmethod
@@ -312,10 +328,15 @@ class SceneSync:
         self.membership = collections.Counter()
         for instance in depsgraph.object_instances:
             obj = instance.object
-            self.membership[(obj.original.as_pointer(), instance.is_instance)] += 1
+            object_masks = instance_masks(instance, depsgraph.view_layer)
+            self.membership[(obj.original.as_pointer(), instance.is_instance, object_masks)] += 1
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             kind = splat_object.kind_of(obj)
+            holdout, shadow_catcher = object_masks
+            if shadow_catcher and kind is not None:
+                self._warn_once(f"Splat object '{obj.name}' is a Shadow Catcher, which Gaussians cannot be in "
+                                "RaySplats: it is drawn as an ordinary object")
             if kind is not None:
                 for message in splat_object.fidelity_warnings(obj.original, for_render=not self.interactive):
                     self._warn_once(message)
@@ -336,9 +357,12 @@ class SceneSync:
                 stats.splats += len(cloud["opacities"])
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
                 render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
+                if holdout:
+                    render_scene.set_gaussian_holdout(index, True)
                 if uid is None:
                     continue
                 self.pass_indices[uid] = pass_indices(obj)
+                self.masks[uid] = object_masks
                 if kind == splat_object.POLYGONS:
                     self.shading[uid] = _object_shading(obj)
                     self.clouds[uid] = (index, len(cloud["opacities"]))
@@ -353,11 +377,13 @@ class SceneSync:
                 vertices, triangles, face_materials, uvs = arrays
                 with self.clock.stage("scene"):
                     index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                                  face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index)
+                                                  face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index,
+                                                  holdout=holdout, shadow_catcher=shadow_catcher)
                 stats.triangles += len(triangles)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
                     self.pass_indices[uid] = pass_indices(obj)
+                    self.masks[uid] = object_masks
             elif obj.type == "LIGHT":
                 render_scene.add_light(**_light_kwargs(obj.data, matrix))
                 stats.lights += 1
@@ -402,9 +428,11 @@ class SceneSync:
 
     @staticmethod
     def _membership(depsgraph):
-        """The objects the depsgraph draws (original pointers) and how many times each, as `membership` records them
-        when the scene is built: a collection update that leaves them as they were changes nothing of the scene."""
-        return collections.Counter((instance.object.original.as_pointer(), instance.is_instance)
+        """The objects the depsgraph draws (original pointers, their masks()) and how many times each, as `membership`
+        records them when the scene is built: a collection update that leaves them as they were changes nothing of the
+        scene (a collection's Holdout does)."""
+        return collections.Counter((instance.object.original.as_pointer(), instance.is_instance,
+                                    instance_masks(instance, depsgraph.view_layer))
                                    for instance in depsgraph.object_instances)
 
     # Datablocks whose changes the in-place update cannot express: the scene is built again.
@@ -424,6 +452,8 @@ class SceneSync:
             return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
         if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
             return True  # its pass index, or its first material's (neither geometry nor transform either)
+        if uid in self.masks and masks(data, self.view_layer) != self.masks[uid]:
+            return True  # its Holdout or Shadow Catcher
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
         # Objects the scene holds nothing of: the camera (not part of the scene), and those whose changes reach it
@@ -452,6 +482,8 @@ class SceneSync:
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
                 return "rebuild"  # (rare: an animated pass index)
+            if uid in self.masks and masks(data, self.view_layer) != self.masks[uid]:
+                return "rebuild"  # its Holdout or Shadow Catcher
             if uid in self.clouds:
                 shading = _object_shading(data)
                 if shading != self.shading.get(uid):
@@ -487,7 +519,8 @@ class SceneSync:
                     self.meshes[uid] = (index, arrays)
                 vertices, triangles, face_materials, uvs = arrays
                 self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
-                                              uvs=uvs, pass_index=data.pass_index)
+                                              uvs=uvs, pass_index=data.pass_index, holdout=self.masks[uid][0],
+                                              shadow_catcher=self.masks[uid][1])
                 result = "updated"
             else:
                 return "rebuild"  # a new object, an instancer, a light

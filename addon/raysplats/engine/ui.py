@@ -17,6 +17,9 @@ _COMPATIBLE_PANELS = (
     # Camera > Depth of Field and its Aperture subpanel: every Camera.dof setting the engine reads (focus distance or
     # object, f-stop, blades, rotation, ratio), where Cycles shows them.
     "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture",
+    # Object > Visibility: Show In and Mask > Holdout (Object.is_holdout), which the engine renders as Cycles does;
+    # a collection's Holdout is the Outliner's own toggle.
+    "OBJECT_PT_visibility",
 )
 
 

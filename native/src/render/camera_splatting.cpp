@@ -22,8 +22,10 @@ const char* CameraSplatting::traced_reason(const Scene::Impl& scene, const Rende
     if (camera.type != CameraType::Perspective) return "needs a perspective camera";
     if (CameraRayGenerator(camera, settings.width, settings.height).depth_of_field())
         return "needs a camera without depth of field";
-    for (const auto& set : scene.gaussians)
+    for (const auto& set : scene.gaussians) {
         if (shader.shading(set->index) != GaussianShading::Baked) return "needs every Gaussian object Baked";
+        if (set->holdout) return "needs no Gaussian object held out";
+    }
     return nullptr;
 }
 

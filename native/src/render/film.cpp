@@ -62,7 +62,7 @@ inline float display_part(const float* sums, int k) {
 }
 
 void radiance_and_coverage(const SampleRecord& s, float* out) {
-    out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
+    out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha - s.holdout;
 }
 void depth_of(const SampleRecord& s, float* out) { out[0] = s.depth; }
 void normal_of(const SampleRecord& s, float* out) { out[0] = s.normal[0], out[1] = s.normal[1], out[2] = s.normal[2]; }
@@ -80,6 +80,12 @@ void denoising_albedo_of(const SampleRecord& s, float* out) {
 }
 void denoising_normal_of(const SampleRecord& s, float* out) {
     out[0] = s.denoising_normal[0], out[1] = s.denoising_normal[1], out[2] = s.denoising_normal[2];
+}
+void environment_of(const SampleRecord& s, float* out) {
+    out[0] = s.environment[0], out[1] = s.environment[1], out[2] = s.environment[2];
+}
+void shadow_catcher_of(const SampleRecord& s, float* out) {
+    out[0] = s.shadow_catcher[0], out[1] = s.shadow_catcher[1], out[2] = s.shadow_catcher[2];
 }
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
@@ -119,6 +125,15 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::DenoisingNormal, "denoising_normal", "Denoising Normal", "XYZ", "VECTOR", SampleCombination::Mean,
      0.0f, "Denoiser guide: world-space normal the camera ray sees, weighted as composited (needs denoising_data; "
      "else 0)", denoising_normal_of},
+    // Blender's Env pass (ViewLayer.use_pass_environment), Cycles' layout; averaged as Cycles averages it.
+    {FilmChannel::Environment, "environment", "Env", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "The world's colour where the camera ray escapes, times its transmittance (0 where it stops on a surface)",
+     environment_of},
+    // Cycles' Shadow Catcher pass (its layout; the check box is Cycles' view_layer.cycles.use_pass_shadow_catcher):
+    // the plate's multiplier, 1 where no shadow catcher is seen.
+    {FilmChannel::ShadowCatcher, "shadow_catcher", "Shadow Catcher", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Shadow catchers: the lights' direct light with shadows over that without, seen through what is in front "
+     "(1: no shadow catcher)", shadow_catcher_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample
@@ -256,9 +271,15 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
             }
     }
     if (transparent_background) return;
+    // An opaque background covers every pixel: alpha 1 less the held-out fraction, which is the coverage (the Alpha
+    // channel) less Combined's alpha, both means of the same samples (exactly 1 where nothing is held out).
     FloatBuffer& rgba = film.rgba();
+    const FloatBuffer& coverage = film.alpha();
     for (int y = y0_; y < y1_; ++y)
-        for (int x = x0_; x < x1_; ++x) rgba[4 * (std::size_t(y) * film.width + x) + 3] = 1.0f;
+        for (int x = x0_; x < x1_; ++x) {
+            const std::size_t pixel = std::size_t(y) * film.width + x;
+            rgba[4 * pixel + 3] = 1.0f - (coverage[pixel] - rgba[4 * pixel + 3]);
+        }
 }
 
 void Film::write_png(const std::string& path) const {

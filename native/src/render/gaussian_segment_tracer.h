@@ -46,6 +46,9 @@ struct Segment {
     // integrator's to add. 0 otherwise.
     glm::vec3 guide_albedo{0.0f};
     glm::vec3 guide_normal{0.0f};
+    // Camera rays: the coverage of held-out Gaussians (GaussianSet::holdout), sum T_i a_i over them, a terminating
+    // one taking the transmittance left as for mist; they add no radiance. 0 otherwise.
+    float holdout = 0.0f;
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
     // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).

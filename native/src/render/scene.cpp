@@ -259,6 +259,11 @@ void Scene::set_gaussian_pass_indices(std::uint32_t index, std::uint32_t object_
     impl_->gaussians[index]->material_pass_index = material_pass_index;
 }
 
+void Scene::set_gaussian_holdout(std::uint32_t index, bool holdout) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    impl_->gaussians[index]->holdout = holdout;
+}
+
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());
     impl_->lights.push_back(light);

@@ -1,0 +1,339 @@
+# Blender's Holdout (Object.is_holdout, a collection's Holdout in the view layer), Shadow Catcher
+# (Object.is_shadow_catcher, Cycles' Shadow Catcher pass) and the Environment pass (ViewLayer.use_pass_environment), as
+# Cycles defines them (docs/reference.md, Holdout, Environment pass, Shadow Catcher):
+# - on meshes, against Cycles: Combined's alpha and colour are 0 wherever a held-out object is seen, with and without
+#   Film > Transparent, and the rest of the image is as without the holdout (bit for bit where no camera ray meets a
+#   held-out object: other rays still see it);
+# - on Gaussians (polygon and compact splat objects), against the closed form: a held-out Gaussian takes its
+#   coverage T a out of Combined's alpha and adds no colour;
+# - the Environment pass is the world's colour where the camera ray escapes, times the Gaussians' transmittance, and
+#   agrees with Cycles on meshes;
+# - a Shadow Catcher floor under a cube and a sun agrees with Cycles (the Shadow Catcher pass and the transparent
+#   Combined's alpha), and under a splat object its Shadow Catcher pass follows the Gaussians' transmittance.
+# Samples are spread over 1 % of a pixel around its centre (a Gaussian pixel filter of width 0.01 in both engines),
+# so that pixel values are those of the pixel centre's ray.
+import unittest
+
+import bpy
+import numpy as np
+
+import splat_testing as st
+from raysplats.blender import compat
+from raysplats.engine import sync
+from raysplats.objects import creation
+
+WIDTH, HEIGHT = 64, 48
+CAMERA_HEIGHT = 10.0
+WORLD = (0.1, 0.2, 0.3)
+HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION, FLOOR = 1, 2, 3
+
+
+def new_scene(samples=4):
+    """A camera 10 units above z = 0 looking down, both engines' samples at the pixel centre, the Object Index and
+    Environment passes on, and a uniform world."""
+    scene = st.reset_render_scene(WIDTH, HEIGHT, samples=samples)
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = False
+    st.set_world_color(world, WORLD)
+    scene.world = world
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, 0.0, CAMERA_HEIGHT)
+    scene.camera = camera
+    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
+    scene.raysplats.use_adaptive_sampling = False
+    st.use_cycles_on_cpu(scene, samples, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
+    view_layer = bpy.context.view_layer
+    view_layer.use_pass_object_index = True
+    view_layer.use_pass_environment = True
+    return scene
+
+
+def add_plane(size, location, pass_index):
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=location)
+    obj = bpy.context.active_object
+    obj.scale = (size[0], size[1], 1.0)
+    obj.pass_index = pass_index
+    return obj
+
+
+def mesh_scene(held_out):
+    """A floor over the left half, a box held out by its object's Holdout and one in a collection held out in the
+    view layer (when `held_out`), a light, and the world where none of them is."""
+    scene = new_scene(samples=16)
+    add_plane((4.0, 8.0), (-2.0, 0.0, 0.0), FLOOR)
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(1.5, 1.0, 3.0))
+    box = bpy.context.active_object
+    box.pass_index = HELD_OUT_OBJECT
+    box.is_holdout = held_out
+    collection = bpy.data.collections.new("Held out")
+    scene.collection.children.link(collection)
+    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(-1.5, -1.0, 2.0))
+    other = bpy.context.active_object
+    other.pass_index = HELD_OUT_BY_COLLECTION
+    for users in list(other.users_collection):
+        users.objects.unlink(other)
+    collection.objects.link(other)
+    bpy.context.view_layer.layer_collection.children[collection.name].holdout = held_out
+    light = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    light.data.energy = 3.0
+    light.rotation_euler = (0.4, 0.3, 0.0)
+    scene.collection.objects.link(light)
+    return scene
+
+
+def render(scene, engine, name):
+    """{"rgba": (H, W, 4), "index": (H, W), "env": (H, W, 3), "catcher": (H, W, 3) where the Shadow Catcher pass is on}
+    of F12 into a multilayer EXR (rows top to bottom)."""
+    scene.render.engine = engine
+    exr = st.render_multilayer_exr(name)
+    layer = next(name.split(".")[0] for name in exr)
+    index, env = compat.render_pass_name("IndexOB"), compat.render_pass_name("Env")
+    result = {"rgba": np.stack([exr[f"{layer}.Combined.{c}"] for c in "RGBA"], axis=-1),
+              "index": exr[f"{layer}.{index}.X"],
+              "env": np.stack([exr[f"{layer}.{env}.{c}"] for c in "RGB"], axis=-1)}
+    if f"{layer}.Shadow Catcher.R" in exr:
+        result["catcher"] = np.stack([exr[f"{layer}.Shadow Catcher.{c}"] for c in "RGB"], axis=-1)
+    return result
+
+
+def interior(index):
+    """Pixels whose 3 x 3 neighbourhood shows one object: away from every edge."""
+    mask = np.zeros(index.shape, dtype=bool)
+    mask[1:-1, 1:-1] = True
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            mask[1:-1, 1:-1] &= index[1:-1, 1:-1] == index[1 + dy:index.shape[0] - 1 + dy,
+                                                            1 + dx:index.shape[1] - 1 + dx]
+    return mask
+
+
+class MeshHoldout(unittest.TestCase):
+    """Held-out meshes against Cycles, with and without a transparent film."""
+
+    def test_agrees_with_cycles(self):
+        for transparent in (False, True):
+            with self.subTest(transparent=transparent):
+                scene = mesh_scene(held_out=True)
+                scene.render.film_transparent = transparent
+                ours = render(scene, "RAYSPLATS", f"holdout_{transparent}")
+                cycles = render(scene, "CYCLES", f"holdout_cycles_{transparent}")
+                plain_scene = mesh_scene(held_out=False)
+                plain_scene.render.film_transparent = transparent
+                plain = render(plain_scene, "RAYSPLATS", f"holdout_plain_{transparent}")
+                self.compare(ours, cycles, plain, transparent)
+
+    def compare(self, ours, cycles, plain, transparent):
+        inside = interior(plain["index"])
+        held = inside & np.isin(plain["index"], (HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION))
+        for index in (HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION):
+            self.assertGreater(np.sum(inside & (plain["index"] == index)), 20, index)
+        # Where a held-out box is seen: no colour and no alpha, in both engines.
+        self.assertTrue(np.all(ours["rgba"][held] == 0.0))
+        np.testing.assert_allclose(cycles["rgba"][held], 0.0, atol=1e-6)
+        # Elsewhere Combined's alpha is Cycles' (1 with an opaque film; the coverage with a transparent one), and the
+        # pixels are those of the render without holdout, bit for bit: only camera rays see the holdout.
+        rest = inside & ~held
+        expected_alpha = np.ones(rest.shape) if not transparent else (plain["index"] != 0).astype(float)
+        np.testing.assert_array_equal(ours["rgba"][rest][:, 3], expected_alpha[rest])
+        np.testing.assert_allclose(cycles["rgba"][rest][:, 3], expected_alpha[rest], atol=1e-6)
+        np.testing.assert_array_equal(ours["rgba"][rest], plain["rgba"][rest])
+        # Over the whole image, edges included: the mean alpha difference from Cycles.
+        self.assertLess(np.mean(np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])), 0.01)
+
+
+SIGMA, OPACITY, LAYER_Z = 0.6, 0.9, 2.0
+CENTRES = [(-1.2, 0.4, LAYER_Z), (1.3, -0.3, LAYER_Z)]
+ORTHO_SCALE = 6.0
+
+
+def flat_gaussian_cloud():
+    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
+    count = len(CENTRES)
+    sh = np.zeros((count, 1, 3), dtype=np.float32)
+    sh[:, 0] = (np.array([0.8, 0.3, 0.2]) - 0.5) / 0.28209479177387814
+    return {"positions": np.asarray(CENTRES, dtype=np.float32),
+            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
+            "scales": np.tile(np.array([SIGMA, SIGMA, 1e-4], dtype=np.float32), (count, 1)),
+            "opacities": np.full(count, OPACITY, dtype=np.float32), "sh": sh, "sh_degree": 0}
+
+
+def layer_points():
+    """(x, y) where each pixel centre's ray (orthographic, looking down) meets the Gaussians' plane."""
+    i, j = np.meshgrid(np.arange(WIDTH) + 0.5, np.arange(HEIGHT) + 0.5)
+    half = 0.5 * ORTHO_SCALE
+    return (2.0 * i / WIDTH - 1.0) * half, (1.0 - 2.0 * j / HEIGHT) * half * HEIGHT / WIDTH
+
+
+def gaussian_alpha(px, py):
+    """The Gaussian layer's alpha at points of its plane, as the core clamps and cuts each Gaussian's (at
+    Mahalanobis radius 3, src/render/gaussian_primitives.h), composited."""
+    transmittance = np.ones_like(px)
+    for cx, cy, _ in CENTRES:
+        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2
+        a = OPACITY * np.exp(-0.5 * r2)
+        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
+    return 1.0 - transmittance
+
+
+def gaussian_scene(kind, by_collection):
+    """Two flat Gaussians 8 units below an orthographic camera (a polygon or compact splat object), held out by the
+    object's Holdout or by its collection's, over a floor covering the left half."""
+    scene = new_scene()
+    scene.camera.data.type, scene.camera.data.ortho_scale = "ORTHO", ORTHO_SCALE
+    add_plane((4.0, 8.0), (-2.0, 0.0, 0.0), FLOOR)
+    if kind == "POLYGONS":
+        obj, _ = creation.add_gaussian_object(bpy.context, "Splats", flat_gaussian_cloud(), 8, 3.0, "Z")
+    else:
+        obj = creation.add_compact_object(bpy.context, "Splats", flat_gaussian_cloud(), "Z")
+    if by_collection:
+        collection = bpy.data.collections.new("Held out")
+        scene.collection.children.link(collection)
+        for users in list(obj.users_collection):
+            users.objects.unlink(obj)
+        collection.objects.link(obj)
+        bpy.context.view_layer.layer_collection.children[collection.name].holdout = True
+    else:
+        obj.is_holdout = True
+    return scene
+
+
+class GaussianHoldout(unittest.TestCase):
+    """Held-out Gaussians against the closed form: Combined's alpha loses their coverage, their colour is gone."""
+
+    def test_alpha_follows_the_opacity(self):
+        px, py = layer_points()
+        alpha = gaussian_alpha(px, py)
+        on_floor = px < 0.0
+        # Away from the floor's edge and from the rims of the disks, where the alpha drops to 0 within the samples'
+        # spread.
+        away = np.abs(px) > 0.1
+        for cx, cy, _ in CENTRES:
+            away &= np.abs(((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2 - 9.0) > 0.5
+        seen = away & (alpha > 0.3)
+        self.assertGreater(np.sum(seen & on_floor), 20)
+        self.assertGreater(np.sum(seen & ~on_floor), 20)
+        for kind, by_collection in (("POLYGONS", False), ("COMPACT", True), ("COMPACT", False)):
+            for transparent in (False, True):
+                with self.subTest(kind=kind, by_collection=by_collection, transparent=transparent):
+                    scene = gaussian_scene(kind, by_collection)
+                    scene.render.film_transparent = transparent
+                    ours = render(scene, "RAYSPLATS", f"holdout_{kind}_{by_collection}_{transparent}")
+                    # Over the floor: what the Gaussians let through; over the world: that too with an opaque film,
+                    # nothing with a transparent one.
+                    expected = np.where(on_floor | (not transparent), 1.0 - alpha, 0.0)
+                    np.testing.assert_allclose(ours["rgba"][..., 3][away], expected[away], atol=2e-3)
+                    if transparent:
+                        self.assertTrue(np.all(ours["rgba"][~on_floor & away] == 0.0))
+                    # The Environment pass: the world through the Gaussians' transmittance, none on the floor.
+                    world = np.where(on_floor, 0.0, 1.0 - alpha)[..., None] * np.array(WORLD)
+                    np.testing.assert_allclose(ours["env"][away], world[away], atol=2e-3)
+
+
+class EnvironmentPass(unittest.TestCase):
+    """The Environment pass on meshes: the world's colour where nothing is hit, 0 elsewhere, as Cycles'."""
+
+    def test_agrees_with_cycles_and_the_world(self):
+        for transparent in (False, True):
+            with self.subTest(transparent=transparent):
+                scene = mesh_scene(held_out=False)
+                scene.render.film_transparent = transparent
+                ours = render(scene, "RAYSPLATS", f"environment_{transparent}")
+                cycles = render(scene, "CYCLES", f"environment_cycles_{transparent}")
+                inside = interior(ours["index"])
+                world = inside & (ours["index"] == 0)
+                self.assertGreater(np.sum(world), 100)
+                np.testing.assert_allclose(ours["env"][world], np.broadcast_to(WORLD, ours["env"][world].shape),
+                                           atol=1e-6)
+                self.assertTrue(np.all(ours["env"][inside & ~world] == 0.0))
+                np.testing.assert_allclose(ours["env"][inside], cycles["env"][inside], atol=1e-5)
+
+
+def catcher_scene(samples):
+    """A shadow catcher floor, a cube standing on it and a sun 0.5 rad from the vertical (angle 0: hard shadows), a
+    black world and a black cube (so that neither lights the floor: the Shadow Catcher pass is the sun's visibility in
+    both engines), a transparent film and the Shadow Catcher pass on (Cycles' check box, which RaySplats uses)."""
+    scene = new_scene(samples=samples)
+    st.set_world_color(scene.world, (0.0, 0.0, 0.0))
+    scene.render.film_transparent = True
+    bpy.context.view_layer.cycles.use_pass_shadow_catcher = True
+    floor = add_plane((8.0, 8.0), (0.0, 0.0, 0.0), FLOOR)
+    floor.is_shadow_catcher = True
+    bpy.ops.mesh.primitive_cube_add(size=1.5, location=(0.5, -0.5, 0.75))
+    cube = bpy.context.active_object
+    cube.pass_index = HELD_OUT_OBJECT
+    black = bpy.data.materials.new("Black")
+    black.diffuse_color = (0.0, 0.0, 0.0, 1.0)
+    black.use_nodes = True
+    black.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    cube.data.materials.append(black)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    sun.rotation_euler = (0.5, 0.0, 0.0)
+    scene.collection.objects.link(sun)
+    return scene, sun
+
+
+class ShadowCatcher(unittest.TestCase):
+    """Shadow Catcher objects: the Shadow Catcher pass and the transparent Combined's alpha."""
+
+    def test_a_cube_on_a_catcher_agrees_with_cycles(self):
+        # 64 samples: the sun's hard shadow is the same in every sample but at its edge, where the pixel mean is the
+        # lit fraction in both engines.
+        scene, _ = catcher_scene(samples=64)
+        ours = render(scene, "RAYSPLATS", "catcher")
+        cycles = render(scene, "CYCLES", "catcher_cycles")
+        catcher = interior(ours["index"]) & (ours["index"] == FLOOR)
+        shadow = catcher & (cycles["catcher"][..., 0] < 0.5)
+        self.assertGreater(np.sum(shadow), 50)
+        self.assertGreater(np.sum(catcher & ~shadow), 500)
+        difference = np.abs(ours["catcher"] - cycles["catcher"])[catcher]
+        self.assertLess(np.mean(difference), 0.01)
+        self.assertLess(np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])[catcher].mean(), 0.01)
+        # In the shadow the pass is 0 and the alpha 1; outside it 1 and 0, exactly, in RaySplats.
+        self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] < 0.02)] < 0.05))
+        self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] > 0.98)] > 0.95))
+        np.testing.assert_array_equal(ours["rgba"][catcher][:, :3], 0.0)
+        # The cube itself is an ordinary object in both: alpha 1.
+        cube = interior(ours["index"]) & (ours["index"] == HELD_OUT_OBJECT)
+        self.assertGreater(np.sum(cube), 20)
+        np.testing.assert_allclose(ours["rgba"][cube][:, 3], 1.0, atol=1e-6)
+        np.testing.assert_allclose(cycles["rgba"][cube][:, 3], 1.0, atol=1e-6)
+
+    def test_a_splat_objects_shadow(self):
+        # The Gaussians of GaussianHoldout (not held out) 2 units above the catcher; the sun 0.5 rad from the vertical
+        # about X casts each one's shadow 2 tan(0.5) along +Y: the floor point (x, y) sees the sun through the layer at
+        # (x, y - 2 tan 0.5), r = 1 - a there, and the camera sees it through T = 1 - a(x, y).
+        for kind in ("POLYGONS", "COMPACT"):
+            with self.subTest(kind=kind):
+                scene, _ = catcher_scene(samples=4)
+                cube = next(obj for obj in scene.objects if obj.pass_index == HELD_OUT_OBJECT)
+                bpy.data.objects.remove(cube)
+                scene.camera.data.type, scene.camera.data.ortho_scale = "ORTHO", ORTHO_SCALE
+                if kind == "POLYGONS":
+                    creation.add_gaussian_object(bpy.context, "Splats", flat_gaussian_cloud(), 8, 3.0, "Z")
+                else:
+                    creation.add_compact_object(bpy.context, "Splats", flat_gaussian_cloud(), "Z")
+                ours = render(scene, "RAYSPLATS", f"catcher_{kind}")
+                px, py = layer_points()
+                transmittance = 1.0 - gaussian_alpha(px, py)
+                r = 1.0 - gaussian_alpha(px, py - LAYER_Z * np.tan(0.5))
+                expected = 1.0 - transmittance * (1.0 - r)
+                away = np.ones(px.shape, dtype=bool)
+                for cx, cy, _ in CENTRES:
+                    for y in (py, py - LAYER_Z * np.tan(0.5)):
+                        away &= np.abs(((px - cx) ** 2 + (y - cy) ** 2) / SIGMA ** 2 - 9.0) > 0.5
+                shadowed = away & (r < 0.5)
+                unblocked = away & (r == 1.0) & (transmittance == 1.0)
+                self.assertGreater(np.sum(shadowed), 20)
+                self.assertGreater(np.sum(unblocked), 500)
+                self.assertTrue(np.all(ours["catcher"][shadowed] < 1.0))
+                np.testing.assert_allclose(ours["catcher"][unblocked], 1.0, atol=1e-6)
+                np.testing.assert_allclose(ours["catcher"][away], np.repeat(expected[away][:, None], 3, axis=1),
+                                           atol=2e-3)
+                np.testing.assert_allclose(ours["rgba"][..., 3][away], 1.0 - transmittance[away] * r[away],
+                                           atol=2e-3)
+
+
+if __name__ == "__main__":
+    unittest.main()
