@@ -139,7 +139,10 @@ class MeshHoldout(unittest.TestCase):
         np.testing.assert_allclose(cycles["rgba"][rest][:, 3], expected_alpha[rest], atol=1e-6)
         np.testing.assert_array_equal(ours["rgba"][rest], plain["rgba"][rest])
         # Over the whole image, edges included: the mean alpha difference from Cycles.
-        self.assertLess(np.mean(np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])), 0.01)
+        difference = np.mean(np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3]))
+        print(f"\nHoldout against Cycles, Blender {bpy.app.version_string}, transparent {transparent}: mean |alpha "
+              f"difference| {difference:.2e} ({np.sum(held)} held-out pixels RGBA 0)")
+        self.assertLess(difference, 0.01)
 
 
 SIGMA, OPACITY, LAYER_Z = 0.6, 0.9, 2.0
@@ -222,9 +225,12 @@ class GaussianHoldout(unittest.TestCase):
                     # Over the floor: what the Gaussians let through; over the world: that too with an opaque film,
                     # nothing with a transparent one.
                     expected = np.where(on_floor | (not transparent), 1.0 - alpha, 0.0)
+                    print(f"\nGaussian holdout, Blender {bpy.app.version_string}, {kind}: max |alpha - closed form| "
+                          f"{np.max(np.abs(ours['rgba'][..., 3] - expected)[away]):.2e}")
                     np.testing.assert_allclose(ours["rgba"][..., 3][away], expected[away], atol=2e-3)
                     if transparent:
-                        self.assertTrue(np.all(ours["rgba"][~on_floor & away] == 0.0))
+                        np.testing.assert_array_equal(ours["rgba"][~on_floor & away][:, :3], 0.0)
+                        np.testing.assert_allclose(ours["rgba"][~on_floor & away][:, 3], 0.0, atol=1e-6)
                     # The Environment pass: the world through the Gaussians' transmittance, none on the floor.
                     world = np.where(on_floor, 0.0, 1.0 - alpha)[..., None] * np.array(WORLD)
                     np.testing.assert_allclose(ours["env"][away], world[away], atol=2e-3)
@@ -246,6 +252,8 @@ class EnvironmentPass(unittest.TestCase):
                 np.testing.assert_allclose(ours["env"][world], np.broadcast_to(WORLD, ours["env"][world].shape),
                                            atol=1e-6)
                 self.assertTrue(np.all(ours["env"][inside & ~world] == 0.0))
+                print(f"\nEnvironment against Cycles, Blender {bpy.app.version_string}: max |difference| "
+                      f"{np.max(np.abs(ours['env'] - cycles['env'])[inside]):.2e}")
                 np.testing.assert_allclose(ours["env"][inside], cycles["env"][inside], atol=1e-5)
 
 
@@ -271,7 +279,7 @@ def catcher_scene(samples):
     sun.data.energy, sun.data.angle = 3.0, 0.0
     sun.rotation_euler = (0.5, 0.0, 0.0)
     scene.collection.objects.link(sun)
-    return scene, sun
+    return scene
 
 
 class ShadowCatcher(unittest.TestCase):
@@ -279,21 +287,36 @@ class ShadowCatcher(unittest.TestCase):
 
     def test_a_cube_on_a_catcher_agrees_with_cycles(self):
         # 64 samples: the sun's hard shadow is the same in every sample but at its edge, where the pixel mean is the
-        # lit fraction in both engines.
-        scene, _ = catcher_scene(samples=64)
-        ours = render(scene, "RAYSPLATS", "catcher")
-        cycles = render(scene, "CYCLES", "catcher_cycles")
+        # lit fraction in both engines. With the Shadow Catcher pass the shadow is the pass's and Combined leaves the
+        # catcher transparent; without it Combined's alpha is the shadow (Cycles' approximate shadow catcher).
+        for with_pass in (True, False):
+            with self.subTest(with_pass=with_pass):
+                scene = catcher_scene(samples=64)
+                bpy.context.view_layer.cycles.use_pass_shadow_catcher = with_pass
+                ours = render(scene, "RAYSPLATS", f"catcher_{with_pass}")
+                cycles = render(scene, "CYCLES", f"catcher_cycles_{with_pass}")
+                self.compare_catchers(ours, cycles, with_pass)
+
+    def compare_catchers(self, ours, cycles, with_pass):
         catcher = interior(ours["index"]) & (ours["index"] == FLOOR)
-        shadow = catcher & (cycles["catcher"][..., 0] < 0.5)
-        self.assertGreater(np.sum(shadow), 50)
-        self.assertGreater(np.sum(catcher & ~shadow), 500)
-        difference = np.abs(ours["catcher"] - cycles["catcher"])[catcher]
-        self.assertLess(np.mean(difference), 0.01)
-        self.assertLess(np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])[catcher].mean(), 0.01)
-        # In the shadow the pass is 0 and the alpha 1; outside it 1 and 0, exactly, in RaySplats.
-        self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] < 0.02)] < 0.05))
-        self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] > 0.98)] > 0.95))
+        self.assertGreater(np.sum(catcher), 500)
         np.testing.assert_array_equal(ours["rgba"][catcher][:, :3], 0.0)
+        alpha_difference = np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])[catcher].mean()
+        print(f"\nShadow catcher against Cycles, Blender {bpy.app.version_string}, pass {with_pass}: mean |alpha "
+              f"difference| {alpha_difference:.2e}", end="")
+        self.assertLess(alpha_difference, 0.01)
+        if with_pass:
+            shadow = catcher & (cycles["catcher"][..., 0] < 0.5)
+            self.assertGreater(np.sum(shadow), 50)
+            pass_difference = np.mean(np.abs(ours["catcher"] - cycles["catcher"])[catcher])
+            print(f", mean |Shadow Catcher difference| {pass_difference:.2e} ({np.sum(shadow)} pixels in shadow)")
+            self.assertLess(pass_difference, 0.01)
+            np.testing.assert_array_equal(ours["rgba"][catcher][:, 3], 0.0)
+            # In the shadow the pass is 0, outside it 1 (exactly in RaySplats, but at the shadow's edge).
+            self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] < 0.02)] < 0.05))
+            self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] > 0.98)] > 0.95))
+        else:
+            self.assertGreater(np.sum(catcher & (cycles["rgba"][..., 3] > 0.5)), 50)
         # The cube itself is an ordinary object in both: alpha 1.
         cube = interior(ours["index"]) & (ours["index"] == HELD_OUT_OBJECT)
         self.assertGreater(np.sum(cube), 20)
@@ -306,7 +329,7 @@ class ShadowCatcher(unittest.TestCase):
         # (x, y - 2 tan 0.5), r = 1 - a there, and the camera sees it through T = 1 - a(x, y).
         for kind in ("POLYGONS", "COMPACT"):
             with self.subTest(kind=kind):
-                scene, _ = catcher_scene(samples=4)
+                scene = catcher_scene(samples=4)
                 cube = next(obj for obj in scene.objects if obj.pass_index == HELD_OUT_OBJECT)
                 bpy.data.objects.remove(cube)
                 scene.camera.data.type, scene.camera.data.ortho_scale = "ORTHO", ORTHO_SCALE
@@ -326,13 +349,15 @@ class ShadowCatcher(unittest.TestCase):
                 shadowed = away & (r < 0.5)
                 unblocked = away & (r == 1.0) & (transmittance == 1.0)
                 self.assertGreater(np.sum(shadowed), 20)
-                self.assertGreater(np.sum(unblocked), 500)
+                self.assertGreater(np.sum(unblocked), 300)
                 self.assertTrue(np.all(ours["catcher"][shadowed] < 1.0))
+                print(f"\nSplat shadow on a catcher, Blender {bpy.app.version_string}, {kind}: max |pass - closed form| "
+                      f"{np.max(np.abs(ours['catcher'][..., 0] - expected)[away]):.2e}")
                 np.testing.assert_allclose(ours["catcher"][unblocked], 1.0, atol=1e-6)
                 np.testing.assert_allclose(ours["catcher"][away], np.repeat(expected[away][:, None], 3, axis=1),
                                            atol=2e-3)
-                np.testing.assert_allclose(ours["rgba"][..., 3][away], 1.0 - transmittance[away] * r[away],
-                                           atol=2e-3)
+                # The pass is written: Combined leaves the catcher transparent behind the Gaussians' own coverage.
+                np.testing.assert_allclose(ours["rgba"][..., 3][away], 1.0 - transmittance[away], atol=2e-3)
 
 
 if __name__ == "__main__":

@@ -52,6 +52,7 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "blend_space", std::string("LINEAR"));
     table.set(s, "camera_ray_splatting", true);
     table.set(s, "denoising_data", true);
+    table.set(s, "shadow_catcher_pass", true);
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -71,10 +72,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_EQ(s.blend_space, BlendSpace::Linear);
     EXPECT_TRUE(s.camera_ray_splatting);
     EXPECT_TRUE(s.denoising_data);
+    EXPECT_TRUE(s.shadow_catcher_pass);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 29u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 30u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

@@ -108,7 +108,8 @@ def render_final(engine, depsgraph):
     # The denoiser's guides are computed when the render denoises or writes them.
     render_settings = sync.render_settings(
         scene, width, height, settings.samples, adaptive=True,
-        denoising_data=settings.use_denoising or passes.denoising_passes_enabled(depsgraph.view_layer))
+        denoising_data=settings.use_denoising or passes.denoising_passes_enabled(depsgraph.view_layer),
+        shadow_catcher_pass=passes.shadow_catcher_pass_enabled(depsgraph.view_layer))
 
     # With a render border (cropped or not) Blender's render result is the border's size; Blender places it in the
     # frame itself (uncropped: the rest transparent). The core renders only the border's pixels, at their place in

@@ -56,6 +56,11 @@ def denoising_passes_enabled(view_layer):
     return any(enabled(view_layer, channel) for channel in channels() if channel["key"] in DENOISING_KEYS)
 
 
+def shadow_catcher_pass_enabled(view_layer):
+    """Whether the view layer writes the Shadow Catcher pass (Combined then leaves shadow catchers transparent)."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] == "shadow_catcher")
+
+
 def blender_name(channel):
     """The render pass's name in this Blender (5.0 renamed some)."""
     return compat.render_pass_name(channel["pass_name"])

@@ -634,9 +634,10 @@ def frame_seed(scene):
 # this sync copies it; a core setting with neither a property nor a place below is an error here and in the tests.
 # Settings made from Blender's own scene data (image size, samples per render kind, the frame's seed, Film >
 # Transparent) or that apply only to the final render (adaptive sampling).
-# denoising_data: on when the render denoises or writes the denoising passes (the callers say which).
+# denoising_data: on when the render denoises or writes the denoising passes; shadow_catcher_pass: on when the render
+# writes the Shadow Catcher pass (the callers say which).
 DERIVED_SETTINGS = frozenset({"width", "height", "samples", "seed", "transparent_background", "adaptive_sampling",
-                              "adaptive_threshold", "adaptive_min_samples", "denoising_data"})
+                              "adaptive_threshold", "adaptive_min_samples", "denoising_data", "shadow_catcher_pass"})
 # Settings the add-on leaves at the core's defaults: tuning and test switches that do not change the image, and the
 # render region, which final.py sets from the render border.
 CORE_ONLY_SETTINGS = frozenset({"tile_size", "gather_buffer_size", "jitter", "speculative_ends", "region_x",
@@ -654,14 +655,17 @@ def copied_settings(core):
     return names
 
 
-def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False):
+def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False,
+                    shadow_catcher_pass=False):
     """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
     viewport refines in passes of its own and leaves it off). `denoising_data`: the core fills the denoiser's guide
-    channels (Denoising Albedo and Normal)."""
+    channels (Denoising Albedo and Normal). `shadow_catcher_pass`: the render writes the Shadow Catcher pass (Combined
+    then leaves shadow catchers transparent, as Cycles)."""
     settings = scene.raysplats
     values = {name: getattr(settings, name) for name in copied_settings(native.core())}
     values.update(width=width, height=height, samples=samples, seed=(frame_seed(scene) + seed_offset) & 0xFFFFFFFF,
-                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data))
+                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data),
+                  shadow_catcher_pass=bool(shadow_catcher_pass))
     if adaptive and settings.use_adaptive_sampling:
         values.update(adaptive_sampling=True, adaptive_threshold=settings.adaptive_threshold,
                       adaptive_min_samples=settings.adaptive_min_samples)

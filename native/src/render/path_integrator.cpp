@@ -385,10 +385,11 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
 
 // The camera segment's shadow catcher `seg` (surface `sf`; MeshDesc::shadow_catcher): the ratio r of the lights'
 // direct light at the point with their visibility (meshes and Gaussians) to that without, per channel, 1 where none
-// reaches it (Cycles' safe_divide_shadow_catcher); then, with T the transmittance in front and m = mean(r), Cycles'
-// approximate shadow catcher (kernel/film/read.h, film_calculate_shadow_catcher_matte_with_shadow): alpha
-// T (1 - m) and no colour with a transparent background, else (`add_world`) the world's colour times T m; and the
-// Shadow Catcher pass 1 - T (1 - r), the ratio alpha-overed on white.
+// reaches it (Cycles' safe_divide_shadow_catcher); then, with T the transmittance in front and m = mean(r): the
+// Shadow Catcher pass 1 - T (1 - r), the ratio alpha-overed on white; and Combined as Cycles' (kernel/film/read.h):
+// with the pass written, the catcher held out (transparent, the shadow being the pass's), else its approximate shadow
+// catcher (film_calculate_shadow_catcher_matte_with_shadow): alpha T (1 - m) and no colour with a transparent
+// background, else (`add_world`) the world's colour times T m.
 void PathIntegrator::catch_shadows(PathState& p, const Segment& seg, const Surface& sf, bool add_world,
                                    Counters& c) const {
     const Material& mat = s_.materials.empty() ? default_material_ : s_.materials[sf.material];
@@ -415,7 +416,8 @@ void PathIntegrator::catch_shadows(PathState& p, const Segment& seg, const Surfa
     const float t = p.camera_transmittance * seg.transmittance;
     const float lit = (ratio.x + ratio.y + ratio.z) / 3.0f;
     p.shadow_catcher = glm::vec3(1.0f) - t * (glm::vec3(1.0f) - ratio);
-    if (st_.transparent_background) p.holdout += t * lit;
+    if (st_.shadow_catcher_pass) p.holdout += t;
+    else if (st_.transparent_background) p.holdout += t * lit;
     else if (add_world) p.radiance += p.beta * world_ * lit;
 }
 

@@ -56,11 +56,12 @@ struct MeshDesc {
     // Combined's alpha loses (SampleRecord::holdout). Other rays see the mesh as usual.
     bool holdout = false;
     // Blender's Shadow Catcher (Object.is_shadow_catcher): where a camera ray meets the mesh it shows only the
-    // shadows the lights cast on it, as Cycles' approximate shadow catcher (kernel/film/read.h): with r the ratio of
-    // the lights' direct light at the point with visibility to that without (per channel; 1 where no light reaches
-    // it), Combined gets alpha T (1 - mean(r)) and no colour with a transparent background, the world's colour times
-    // T mean(r) otherwise (T: the transmittance in front), and the Shadow Catcher pass 1 - T (1 - r)
-    // (SampleRecord::shadow_catcher). Other rays see the mesh as usual.
+    // shadows the lights cast on it, as Cycles' shadow catcher (kernel/film/read.h): with r the ratio of the lights'
+    // direct light at the point with visibility to that without (per channel; 1 where no light reaches it) and T the
+    // transmittance in front, the Shadow Catcher pass is 1 - T (1 - r) (SampleRecord::shadow_catcher); Combined
+    // leaves the mesh transparent when that pass is written (RenderSettings::shadow_catcher_pass), else gets alpha
+    // T (1 - mean(r)) and no colour with a transparent background, the world's colour times T mean(r) otherwise.
+    // Other rays see the mesh as usual.
     bool shadow_catcher = false;
 };
 
