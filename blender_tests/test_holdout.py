@@ -316,6 +316,7 @@ class ShadowCatcher(unittest.TestCase):
             self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] < 0.02)] < 0.05))
             self.assertTrue(np.all(ours["catcher"][catcher & (cycles["catcher"][..., 0] > 0.98)] > 0.95))
         else:
+            print()
             self.assertGreater(np.sum(catcher & (cycles["rgba"][..., 3] > 0.5)), 50)
         # The cube itself is an ordinary object in both: alpha 1.
         cube = interior(ours["index"]) & (ours["index"] == HELD_OUT_OBJECT)
