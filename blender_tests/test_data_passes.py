@@ -35,18 +35,6 @@ def mist_of(distance, falloff):
     return np.clip((distance - MIST_START) / MIST_DEPTH, 0.0, 1.0) ** FALLOFF_EXPONENTS[falloff]
 
 
-def interior(index, *more):
-    """Pixels whose 3 x 3 neighbourhood has one value in every array given: away from every edge."""
-    mask = np.zeros(index.shape, dtype=bool)
-    mask[1:-1, 1:-1] = True
-    for array in (index,) + more:
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                mask[1:-1, 1:-1] &= array[1:-1, 1:-1] == array[1 + dy:array.shape[0] - 1 + dy,
-                                                               1 + dx:array.shape[1] - 1 + dx]
-    return mask
-
-
 def material(name, pass_index):
     result = bpy.data.materials.new(name)
     result.pass_index = pass_index
@@ -56,20 +44,9 @@ def material(name, pass_index):
 def new_scene(falloff="QUADRATIC"):
     """A camera 10 units above z = 0 looking down, both engines' pixel filters at the pixel centre, the four data
     passes on, and the World's mist from 3 to 11 units."""
-    scene = st.reset_render_scene(WIDTH, HEIGHT, samples=4)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, (0.1, 0.1, 0.1))
-    world.mist_settings.start, world.mist_settings.depth = MIST_START, MIST_DEPTH
-    world.mist_settings.falloff = falloff
-    scene.world = world
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, CAMERA_HEIGHT)
-    scene.camera = camera
-    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
-    scene.raysplats.use_adaptive_sampling = False
-    st.use_cycles_on_cpu(scene, 4, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
+    scene = st.pixel_centre_scene(WIDTH, HEIGHT, 4, (0.1, 0.1, 0.1), CAMERA_HEIGHT)
+    mist = scene.world.mist_settings
+    mist.start, mist.depth, mist.falloff = MIST_START, MIST_DEPTH, falloff
     for name in PASSES:
         setattr(bpy.context.view_layer, name, True)
     return scene
@@ -153,7 +130,7 @@ class MeshDataPasses(unittest.TestCase):
         self.assertLess(abs(np.mean(ours["Mist"][inside] - cycles["Mist"][inside])), 2e-3)
 
     def compare(self, ours, cycles, falloff):
-        inside = interior(ours["IndexOB"], cycles["IndexOB"], ours["IndexMA"], cycles["IndexMA"])
+        inside = st.interior(ours["IndexOB"], cycles["IndexOB"], ours["IndexMA"], cycles["IndexMA"])
         # Every object and the world keep some pixels away from edges.
         for index in (0, 3, 7, 12):
             self.assertGreater(np.sum(inside & (cycles["IndexOB"] == index)), 20, index)
@@ -181,17 +158,6 @@ class MeshDataPasses(unittest.TestCase):
                                    atol=1e-3)
 
 
-def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
-    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
-    count = len(centres)
-    sh = np.zeros((count, 1, 3), dtype=np.float32)
-    sh[:, 0] = (np.asarray(color) - 0.5) / 0.28209479177387814
-    return {"positions": np.asarray(centres, dtype=np.float32),
-            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
-            "scales": np.tile(np.array([sigma, sigma, 1e-4], dtype=np.float32), (count, 1)),
-            "opacities": np.full(count, opacity, dtype=np.float32), "sh": sh, "sh_degree": 0}
-
-
 GAUSSIAN_OBJECT_INDEX, GAUSSIAN_MATERIAL_INDEX = 9, 11
 LAYER_Z, SIGMA, OPACITY = 2.0, 0.6, 0.9
 CENTRES = [(-1.2, 0.4, LAYER_Z), (1.3, -0.3, LAYER_Z)]
@@ -207,7 +173,7 @@ def gaussian_scene(kind, falloff="LINEAR", orthographic=True):
     bpy.context.view_layer.use_pass_z = True
     bpy.context.view_layer.raysplats_passes.use_pass_alpha = True
     add_plane("Floor", (4.0, 8.0), (-2.0, 0.0, 0.0), object_index=3, material_index=5)
-    cloud = flat_gaussian_cloud(CENTRES, SIGMA, OPACITY)
+    cloud = st.flat_gaussian_cloud(CENTRES, SIGMA, OPACITY)
     if kind == "POLYGONS":
         obj, _ = creation.add_gaussian_object(bpy.context, "Splats", cloud, 8, 3.0, "Z")
         obj.material_slots[0].material.pass_index = GAUSSIAN_MATERIAL_INDEX  # the falloff material
@@ -219,15 +185,8 @@ def gaussian_scene(kind, falloff="LINEAR", orthographic=True):
 
 
 def gaussian_alpha(px, py):
-    """The alpha of the Gaussian layer at points (px, py) of its plane: its Gaussians' alphas as the core clamps
-    and cuts them (at Mahalanobis radius 3, src/render/gaussian_primitives.h), composited (they lie in one plane, at
-    one distance)."""
-    transmittance = np.ones_like(px)
-    for cx, cy, _ in CENTRES:
-        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2
-        a = OPACITY * np.exp(-0.5 * r2)
-        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
-    return 1.0 - transmittance
+    """The alpha of the Gaussian layer at points (px, py) of its plane."""
+    return st.flat_gaussian_alpha(px, py, CENTRES, SIGMA, OPACITY)
 
 
 class GaussianDataPasses(unittest.TestCase):

@@ -31,18 +31,7 @@ HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION, FLOOR = 1, 2, 3
 def new_scene(samples=4):
     """A camera 10 units above z = 0 looking down, both engines' samples at the pixel centre, the Object Index and
     Environment passes on, and a uniform world."""
-    scene = st.reset_render_scene(WIDTH, HEIGHT, samples=samples)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, WORLD)
-    scene.world = world
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, CAMERA_HEIGHT)
-    scene.camera = camera
-    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
-    scene.raysplats.use_adaptive_sampling = False
-    st.use_cycles_on_cpu(scene, samples, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
+    scene = st.pixel_centre_scene(WIDTH, HEIGHT, samples, WORLD, CAMERA_HEIGHT)
     view_layer = bpy.context.view_layer
     view_layer.use_pass_object_index = True
     view_layer.use_pass_environment = True
@@ -97,15 +86,11 @@ def render(scene, engine, name):
     return result
 
 
-def interior(index):
-    """Pixels whose 3 x 3 neighbourhood shows one object: away from every edge."""
-    mask = np.zeros(index.shape, dtype=bool)
-    mask[1:-1, 1:-1] = True
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            mask[1:-1, 1:-1] &= index[1:-1, 1:-1] == index[1 + dy:index.shape[0] - 1 + dy,
-                                                            1 + dx:index.shape[1] - 1 + dx]
-    return mask
+def render_mesh_scene(held_out, transparent, engines, name):
+    """render() of mesh_scene(held_out) with Film > Transparent `transparent`, by each engine."""
+    scene = mesh_scene(held_out)
+    scene.render.film_transparent = transparent
+    return [render(scene, engine, f"{name}_{engine}_{transparent}") for engine in engines]
 
 
 class MeshHoldout(unittest.TestCase):
@@ -114,17 +99,12 @@ class MeshHoldout(unittest.TestCase):
     def test_agrees_with_cycles(self):
         for transparent in (False, True):
             with self.subTest(transparent=transparent):
-                scene = mesh_scene(held_out=True)
-                scene.render.film_transparent = transparent
-                ours = render(scene, "RAYSPLATS", f"holdout_{transparent}")
-                cycles = render(scene, "CYCLES", f"holdout_cycles_{transparent}")
-                plain_scene = mesh_scene(held_out=False)
-                plain_scene.render.film_transparent = transparent
-                plain = render(plain_scene, "RAYSPLATS", f"holdout_plain_{transparent}")
+                ours, cycles = render_mesh_scene(True, transparent, ("RAYSPLATS", "CYCLES"), "holdout")
+                plain, = render_mesh_scene(False, transparent, ("RAYSPLATS",), "holdout_plain")
                 self.compare(ours, cycles, plain, transparent)
 
     def compare(self, ours, cycles, plain, transparent):
-        inside = interior(plain["index"])
+        inside = st.interior(plain["index"])
         held = inside & np.isin(plain["index"], (HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION))
         for index in (HELD_OUT_OBJECT, HELD_OUT_BY_COLLECTION):
             self.assertGreater(np.sum(inside & (plain["index"] == index)), 20, index)
@@ -151,14 +131,7 @@ ORTHO_SCALE = 6.0
 
 
 def flat_gaussian_cloud():
-    """Flat Gaussians (z extent 1e-4) of one size, opacity and colour, as the core's cloud dict."""
-    count = len(CENTRES)
-    sh = np.zeros((count, 1, 3), dtype=np.float32)
-    sh[:, 0] = (np.array([0.8, 0.3, 0.2]) - 0.5) / 0.28209479177387814
-    return {"positions": np.asarray(CENTRES, dtype=np.float32),
-            "rotations": np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
-            "scales": np.tile(np.array([SIGMA, SIGMA, 1e-4], dtype=np.float32), (count, 1)),
-            "opacities": np.full(count, OPACITY, dtype=np.float32), "sh": sh, "sh_degree": 0}
+    return st.flat_gaussian_cloud(CENTRES, SIGMA, OPACITY)
 
 
 def layer_points():
@@ -169,14 +142,8 @@ def layer_points():
 
 
 def gaussian_alpha(px, py):
-    """The Gaussian layer's alpha at points of its plane, as the core clamps and cuts each Gaussian's (at
-    Mahalanobis radius 3, src/render/gaussian_primitives.h), composited."""
-    transmittance = np.ones_like(px)
-    for cx, cy, _ in CENTRES:
-        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2
-        a = OPACITY * np.exp(-0.5 * r2)
-        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
-    return 1.0 - transmittance
+    """The Gaussian layer's alpha at points (px, py) of its plane."""
+    return st.flat_gaussian_alpha(px, py, CENTRES, SIGMA, OPACITY)
 
 
 def gaussian_scene(kind, by_collection):
@@ -242,11 +209,8 @@ class EnvironmentPass(unittest.TestCase):
     def test_agrees_with_cycles_and_the_world(self):
         for transparent in (False, True):
             with self.subTest(transparent=transparent):
-                scene = mesh_scene(held_out=False)
-                scene.render.film_transparent = transparent
-                ours = render(scene, "RAYSPLATS", f"environment_{transparent}")
-                cycles = render(scene, "CYCLES", f"environment_cycles_{transparent}")
-                inside = interior(ours["index"])
+                ours, cycles = render_mesh_scene(False, transparent, ("RAYSPLATS", "CYCLES"), "environment")
+                inside = st.interior(ours["index"])
                 world = inside & (ours["index"] == 0)
                 self.assertGreater(np.sum(world), 100)
                 np.testing.assert_allclose(ours["env"][world], np.broadcast_to(WORLD, ours["env"][world].shape),
@@ -298,7 +262,7 @@ class ShadowCatcher(unittest.TestCase):
                 self.compare_catchers(ours, cycles, with_pass)
 
     def compare_catchers(self, ours, cycles, with_pass):
-        catcher = interior(ours["index"]) & (ours["index"] == FLOOR)
+        catcher = st.interior(ours["index"]) & (ours["index"] == FLOOR)
         self.assertGreater(np.sum(catcher), 500)
         np.testing.assert_array_equal(ours["rgba"][catcher][:, :3], 0.0)
         alpha_difference = np.abs(ours["rgba"][..., 3] - cycles["rgba"][..., 3])[catcher].mean()
@@ -319,7 +283,7 @@ class ShadowCatcher(unittest.TestCase):
             print()
             self.assertGreater(np.sum(catcher & (cycles["rgba"][..., 3] > 0.5)), 50)
         # The cube itself is an ordinary object in both: alpha 1.
-        cube = interior(ours["index"]) & (ours["index"] == HELD_OUT_OBJECT)
+        cube = st.interior(ours["index"]) & (ours["index"] == HELD_OUT_OBJECT)
         self.assertGreater(np.sum(cube), 20)
         np.testing.assert_allclose(ours["rgba"][cube][:, 3], 1.0, atol=1e-6)
         np.testing.assert_allclose(cycles["rgba"][cube][:, 3], 1.0, atol=1e-6)
