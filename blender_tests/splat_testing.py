@@ -2,6 +2,7 @@
 # Gaussian model (covariances, SH evaluation) to check exported files against.
 import os
 import struct
+import types
 
 import bpy
 import numpy as np
@@ -100,6 +101,34 @@ def flat_gaussian_alpha(px, py, centres, sigma, opacity):
         a = opacity * np.exp(-0.5 * r2)
         transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
     return 1.0 - transmittance
+
+
+class RecordingLayout:
+    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+        self.operator_context = "INVOKE_DEFAULT"
+
+    def prop(self, owner, name, **kwargs):
+        self.log.append((type(owner).__name__, name))
+
+    def column(self, *args, **kwargs):
+        return RecordingLayout(self.log)
+
+    row = box = grid_flow = column_flow = split = column
+
+    def label(self, *args, **kwargs):
+        pass
+
+    separator = label
+
+    def operator(self, *args, **kwargs):
+        return types.SimpleNamespace()
+
+    def prop_search(self, owner, name, *args, **kwargs):
+        self.prop(owner, name)
 
 
 def native():

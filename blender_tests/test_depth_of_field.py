@@ -314,31 +314,6 @@ class GaussiansOutOfFocus(unittest.TestCase):
         self.assertLess(psnr(images["pinhole"]), 35.0, "the blur is real")
 
 
-class _RecordingLayout:
-    """Stands in for a panel's UILayout: records the properties drawn (owner type name, property)."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
-
-    def prop(self, owner, name, **kwargs):
-        self.log.append((type(owner).__name__, name))
-
-    def column(self, *args, **kwargs):
-        return _RecordingLayout(self.log)
-
-    row = box = grid_flow = column_flow = split = column
-
-    def label(self, *args, **kwargs):
-        pass
-
-    def operator(self, *args, **kwargs):
-        return SimpleNamespace()
-
-    def prop_search(self, owner, name, *args, **kwargs):
-        self.prop(owner, name)
-
-
 class CameraPanels(unittest.TestCase):
     def test_camera_properties_show_every_depth_of_field_setting(self):
         # Camera Properties > Depth of Field (its header's check box and the focus) and its Aperture subpanel are
@@ -351,7 +326,7 @@ class CameraPanels(unittest.TestCase):
         drawn = []
         for panel in (bpy.types.DATA_PT_camera_dof, bpy.types.DATA_PT_camera_dof_aperture):
             self.assertIn("RAYSPLATS", panel.COMPAT_ENGINES, panel.__name__)
-            stand_in = SimpleNamespace(layout=_RecordingLayout(drawn))
+            stand_in = SimpleNamespace(layout=st.RecordingLayout(drawn))
             for method in ("draw_header", "draw"):
                 if hasattr(panel, method):
                     getattr(panel, method)(stand_in, context)

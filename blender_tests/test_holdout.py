@@ -12,6 +12,7 @@
 #   Combined's alpha), and under a splat object its Shadow Catcher pass follows the Gaussians' transmittance.
 # Samples are spread over 1 % of a pixel around its centre (a Gaussian pixel filter of width 0.01 in both engines),
 # so that pixel values are those of the pixel centre's ray.
+import types
 import unittest
 
 import bpy
@@ -323,6 +324,22 @@ class ShadowCatcher(unittest.TestCase):
                                            atol=2e-3)
                 # The pass is written: Combined leaves the catcher transparent behind the Gaussians' own coverage.
                 np.testing.assert_allclose(ours["rgba"][..., 3][away], 1.0 - transmittance[away], atol=2e-3)
+
+
+class VisibilityPanel(unittest.TestCase):
+    def test_object_properties_show_holdout_and_shadow_catcher(self):
+        # Object Properties > Visibility is Blender's own panel, shown for this engine, with Mask > Holdout and the
+        # Shadow Catcher check box Cycles draws in its own panel.
+        scene = st.reset_render_scene(32, 24, 1)
+        bpy.ops.mesh.primitive_plane_add()
+        obj = bpy.context.active_object
+        panel = bpy.types.OBJECT_PT_visibility
+        self.assertIn("RAYSPLATS", panel.COMPAT_ENGINES)
+        context = types.SimpleNamespace(engine=scene.render.engine, object=obj, scene=scene,
+                                        workspace=types.SimpleNamespace(use_filter_by_owner=False))
+        drawn = []
+        panel.draw(types.SimpleNamespace(layout=st.RecordingLayout(drawn)), context)
+        self.assertLessEqual({("Object", "is_holdout"), ("Object", "is_shadow_catcher")}, set(drawn))
 
 
 if __name__ == "__main__":

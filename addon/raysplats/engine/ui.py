@@ -18,7 +18,7 @@ _COMPATIBLE_PANELS = (
     # object, f-stop, blades, rotation, ratio), where Cycles shows them.
     "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture",
     # Object > Visibility: Show In and Mask > Holdout (Object.is_holdout), which the engine renders as Cycles does;
-    # a collection's Holdout is the Outliner's own toggle.
+    # a collection's Holdout is the Outliner's own toggle. draw_shadow_catcher adds Blender's Shadow Catcher there.
     "OBJECT_PT_visibility",
 )
 
@@ -233,6 +233,13 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
         passes.draw_pass_toggles(self.layout, context.view_layer)
 
 
+def draw_shadow_catcher(self, context):
+    """Object > Visibility > Mask: Blender's Shadow Catcher (Object.is_shadow_catcher), which Cycles draws in its own
+    Visibility panel (not shown for this engine) and this engine renders on meshes."""
+    if context.engine == ENGINE:
+        self.layout.prop(context.object, "is_shadow_catcher")
+
+
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
             RAYSPLATS_RENDER_PT_film, RAYSPLATS_RENDER_PT_light_paths, RAYSPLATS_RENDER_PT_performance,
             RAYSPLATS_RENDER_PT_performance_threads, RAYSPLATS_RENDER_PT_performance_final_render,
@@ -248,9 +255,11 @@ def register():
         panel = getattr(bpy.types, name, None)
         if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
             panel.COMPAT_ENGINES.add(ENGINE)
+    bpy.types.OBJECT_PT_visibility.append(draw_shadow_catcher)
 
 
 def unregister():
+    bpy.types.OBJECT_PT_visibility.remove(draw_shadow_catcher)
     for name in _COMPATIBLE_PANELS:
         panel = getattr(bpy.types, name, None)
         if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
