@@ -281,8 +281,9 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
         p.alpha = 1.0f;  // the mesh behind covers the pixel
         const MeshDesc& mesh = s_.meshes[s_.top[seg.top_geom].index]->desc;
         if (mesh.holdout) p.holdout += p.camera_transmittance * seg.transmittance;
-        // A shadow catcher's alpha and pass are not sampled: both branches add them (its world colour, which is, is
-        // the other branch's).
+        // What a held-out mesh or a shadow catcher gives the pixel's alpha and the Shadow Catcher pass does not
+        // depend on the branch the path takes, so this branch adds it as mesh_hit does in the other; a catcher's world
+        // colour is radiance, which only the other branch adds (weighted by its probability).
         if (mesh.shadow_catcher) catch_shadows(p, seg, surface(seg, p.ray), false, c);
         add_mesh_mist(p, seg);
         if (st_.denoising_data || p.normal_at_mesh) {
