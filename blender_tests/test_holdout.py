@@ -326,6 +326,17 @@ class ShadowCatcher(unittest.TestCase):
                 np.testing.assert_allclose(ours["rgba"][..., 3][away], 1.0 - transmittance[away], atol=2e-3)
 
 
+class GaussianShadowCatcher(unittest.TestCase):
+    def test_a_splat_object_marked_shadow_catcher_is_drawn_and_warns(self):
+        scene = gaussian_scene("COMPACT", by_collection=False)
+        splats = next(obj for obj in scene.objects if obj.name.startswith("Splats"))
+        splats.is_holdout, splats.is_shadow_catcher = False, True
+        _, stats = sync.build_render_scene(bpy.context.evaluated_depsgraph_get())
+        self.assertEqual(stats.splats, len(CENTRES))
+        self.assertTrue(any("Shadow Catcher" in message and splats.name in message for message in stats.warnings),
+                        stats.warnings)
+
+
 class VisibilityPanel(unittest.TestCase):
     def test_object_properties_show_holdout_and_shadow_catcher(self):
         # Object Properties > Visibility is Blender's own panel, shown for this engine, with Mask > Holdout and the
