@@ -105,6 +105,36 @@ def add_with_material(primitive, material, **kwargs):
     return obj
 
 
+def pixel_centre_scene(width, height, samples, world_color, camera_height):
+    """An empty scene with a camera `camera_height` above z = 0 looking down (-Z), a uniform world, and both engines'
+    samples at the pixel centre: pixel filters Gaussian 0.01 px wide, no adaptive sampling, Cycles on the CPU."""
+    scene = reset_render_scene(width, height, samples=samples)
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = False
+    set_world_color(world, world_color)
+    scene.world = world
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, 0.0, camera_height)
+    scene.camera = camera
+    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
+    scene.raysplats.use_adaptive_sampling = False
+    use_cycles_on_cpu(scene, samples, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
+    return scene
+
+
+def interior(index, *more):
+    """Pixels whose 3 x 3 neighbourhood has one value in every array given: away from every edge."""
+    mask = np.zeros(index.shape, dtype=bool)
+    mask[1:-1, 1:-1] = True
+    for array in (index,) + more:
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                mask[1:-1, 1:-1] &= array[1:-1, 1:-1] == array[1 + dy:array.shape[0] - 1 + dy,
+                                                               1 + dx:array.shape[1] - 1 + dx]
+    return mask
+
+
 def flat_gaussian_cloud(centres, sigma, opacity, color=(0.8, 0.3, 0.2)):
     """Flat Gaussians (z extent 1e-4) of one size, opacity and display colour, as the core's cloud dict."""
     count = len(centres)
@@ -149,12 +179,25 @@ def camera_above_scene(width, height, samples, camera_type, ortho_scale):
     return scene
 
 
+def flat_gaussian_alpha(px, py, centres, sigma, opacity):
+    """The alpha of a layer of flat_gaussian_cloud() at points (px, py) of its plane: its Gaussians' alphas as the core
+    clamps and cuts them (at Mahalanobis radius 3, src/render/gaussian_primitives.h), composited (they lie in one
+    plane, at one distance)."""
+    transmittance = np.ones_like(px)
+    for cx, cy, _ in centres:
+        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / sigma ** 2
+        a = opacity * np.exp(-0.5 * r2)
+        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
+    return 1.0 - transmittance
+
+
 class RecordingLayout:
     """Stands in for a panel's UILayout: records each property drawn as (owner type name, property, its text)."""
 
     def __init__(self, log=None):
         self.log = [] if log is None else log
         self.use_property_split = self.use_property_decorate = self.active = self.enabled = False
+        self.operator_context = "INVOKE_DEFAULT"
 
     def prop(self, owner, name, text=None, **kwargs):
         self.log.append((type(owner).__name__, name, text))
@@ -166,6 +209,8 @@ class RecordingLayout:
 
     def label(self, *args, **kwargs):
         pass
+
+    separator = label
 
     def operator(self, *args, **kwargs):
         return types.SimpleNamespace()

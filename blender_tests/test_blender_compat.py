@@ -55,7 +55,8 @@ EXPECTED = {
                                             "DiffInd": "Diffuse Indirect", "DiffCol": "Diffuse Color",
                                             "GlossDir": "Glossy Direct", "GlossInd": "Glossy Indirect",
                                             "GlossCol": "Glossy Color", "TransDir": "Transmission Direct",
-                                            "TransInd": "Transmission Indirect", "TransCol": "Transmission Color"},
+                                            "TransInd": "Transmission Indirect", "TransCol": "Transmission Color",
+                                            "Env": "Environment"},
                                    {}),
     "COMPOSITOR_IS_NODE_GROUP": since((5, 0), True, False),
     "NEWER_THAN_TESTED": since((5, 2), False, False),  # every Blender in this table was tested

@@ -35,18 +35,6 @@ def mist_of(distance, falloff):
     return np.clip((distance - MIST_START) / MIST_DEPTH, 0.0, 1.0) ** FALLOFF_EXPONENTS[falloff]
 
 
-def interior(index, *more):
-    """Pixels whose 3 x 3 neighbourhood has one value in every array given: away from every edge."""
-    mask = np.zeros(index.shape, dtype=bool)
-    mask[1:-1, 1:-1] = True
-    for array in (index,) + more:
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                mask[1:-1, 1:-1] &= array[1:-1, 1:-1] == array[1 + dy:array.shape[0] - 1 + dy,
-                                                               1 + dx:array.shape[1] - 1 + dx]
-    return mask
-
-
 def material(name, pass_index):
     result = bpy.data.materials.new(name)
     result.pass_index = pass_index
@@ -56,20 +44,9 @@ def material(name, pass_index):
 def new_scene(falloff="QUADRATIC"):
     """A camera 10 units above z = 0 looking down, both engines' pixel filters at the pixel centre, the four data
     passes on, and the World's mist from 3 to 11 units."""
-    scene = st.reset_render_scene(WIDTH, HEIGHT, samples=4)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, (0.1, 0.1, 0.1))
-    world.mist_settings.start, world.mist_settings.depth = MIST_START, MIST_DEPTH
-    world.mist_settings.falloff = falloff
-    scene.world = world
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, CAMERA_HEIGHT)
-    scene.camera = camera
-    scene.raysplats.pixel_filter, scene.raysplats.filter_width = "GAUSSIAN", 0.01
-    scene.raysplats.use_adaptive_sampling = False
-    st.use_cycles_on_cpu(scene, 4, pixel_filter=("GAUSSIAN", 0.01), seed=scene.cycles.seed)
+    scene = st.pixel_centre_scene(WIDTH, HEIGHT, 4, (0.1, 0.1, 0.1), CAMERA_HEIGHT)
+    mist = scene.world.mist_settings
+    mist.start, mist.depth, mist.falloff = MIST_START, MIST_DEPTH, falloff
     for name in PASSES:
         setattr(bpy.context.view_layer, name, True)
     return scene
@@ -153,7 +130,7 @@ class MeshDataPasses(unittest.TestCase):
         self.assertLess(abs(np.mean(ours["Mist"][inside] - cycles["Mist"][inside])), 2e-3)
 
     def compare(self, ours, cycles, falloff):
-        inside = interior(ours["IndexOB"], cycles["IndexOB"], ours["IndexMA"], cycles["IndexMA"])
+        inside = st.interior(ours["IndexOB"], cycles["IndexOB"], ours["IndexMA"], cycles["IndexMA"])
         # Every object and the world keep some pixels away from edges.
         for index in (0, 3, 7, 12):
             self.assertGreater(np.sum(inside & (cycles["IndexOB"] == index)), 20, index)
@@ -208,15 +185,8 @@ def gaussian_scene(kind, falloff="LINEAR", orthographic=True):
 
 
 def gaussian_alpha(px, py):
-    """The alpha of the Gaussian layer at points (px, py) of its plane: its Gaussians' alphas as the core clamps
-    and cuts them (at Mahalanobis radius 3, src/render/gaussian_primitives.h), composited (they lie in one plane, at
-    one distance)."""
-    transmittance = np.ones_like(px)
-    for cx, cy, _ in CENTRES:
-        r2 = ((px - cx) ** 2 + (py - cy) ** 2) / SIGMA ** 2
-        a = OPACITY * np.exp(-0.5 * r2)
-        transmittance *= 1.0 - np.where((a < 1.0 / 255.0) | (r2 > 9.0), 0.0, np.minimum(a, 0.99))
-    return 1.0 - transmittance
+    """The alpha of the Gaussian layer at points (px, py) of its plane."""
+    return st.flat_gaussian_alpha(px, py, CENTRES, SIGMA, OPACITY)
 
 
 class GaussianDataPasses(unittest.TestCase):

@@ -95,7 +95,8 @@ struct RenderScene {
     static raysplats::MeshDesc mesh_desc(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
                                          std::uint32_t material, const std::optional<UintArray>& face_materials,
                                          const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
-                                         std::uint32_t pass_index, std::vector<py::object>& arrays) {
+                                         std::uint32_t pass_index, bool holdout, bool shadow_catcher,
+                                         std::vector<py::object>& arrays) {
         const py::ssize_t vertex_count = require_shape(vertices, "vertices", {kAnySize, 3});
         const py::ssize_t triangle_count = require_shape(triangles, "triangles", {kAnySize, 3});
         raysplats::MeshDesc d;
@@ -105,6 +106,8 @@ struct RenderScene {
         d.triangle_count = std::size_t(triangle_count);
         d.material = material;
         d.pass_index = pass_index;
+        d.holdout = holdout;
+        d.shadow_catcher = shadow_catcher;
         d.object_to_world = matrix_from(matrix, "matrix");
         arrays = {vertices, triangles};
         if (face_materials) {
@@ -128,10 +131,10 @@ struct RenderScene {
     std::uint32_t add_mesh(const FloatArray& vertices, const UintArray& triangles, const py::object& matrix,
                            std::uint32_t material, const std::optional<UintArray>& face_materials,
                            const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
-                           std::uint32_t pass_index) {
+                           std::uint32_t pass_index, bool holdout, bool shadow_catcher) {
         std::vector<py::object> arrays;
-        const raysplats::MeshDesc d =
-            mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, pass_index, arrays);
+        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs,
+                                                pass_index, holdout, shadow_catcher, arrays);
         const std::uint32_t index = shared.change()->add_mesh(d);
         mesh_arrays.push_back(std::move(arrays));
         return index;
@@ -140,10 +143,10 @@ struct RenderScene {
     void update_mesh(std::uint32_t index, const FloatArray& vertices, const UintArray& triangles,
                      const py::object& matrix, std::uint32_t material, const std::optional<UintArray>& face_materials,
                      const std::optional<FloatArray>& normals, const std::optional<FloatArray>& uvs,
-                     std::uint32_t pass_index) {
+                     std::uint32_t pass_index, bool holdout, bool shadow_catcher) {
         std::vector<py::object> arrays;
-        const raysplats::MeshDesc d =
-            mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs, pass_index, arrays);
+        const raysplats::MeshDesc d = mesh_desc(vertices, triangles, matrix, material, face_materials, normals, uvs,
+                                                pass_index, holdout, shadow_catcher, arrays);
         shared.change()->update_mesh(index, d);
         mesh_arrays[index] = std::move(arrays);  // the old arrays are released only now
     }
@@ -220,6 +223,9 @@ struct RenderScene {
     }
     void set_material_cryptomatte_name(std::uint32_t index, const std::string& material) {
         shared.change()->set_material_cryptomatte_name(index, material);
+    }
+    void set_gaussian_holdout(std::uint32_t index, bool holdout) {
+        shared.change()->set_gaussian_holdout(index, holdout);
     }
 
     std::uint32_t add_light(const std::string& type, const py::object& color, float power, const py::object& matrix,
@@ -349,7 +355,7 @@ void register_render_bindings(py::module_& m) {
              "specular_tint"_a = std::vector<float>{1.0f, 1.0f, 1.0f}, "multiscatter"_a = false, "pass_index"_a = 0u)
         .def("add_mesh", &RenderScene::add_mesh, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
              "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none(),
-             "pass_index"_a = 0u)
+             "pass_index"_a = 0u, "holdout"_a = false, "shadow_catcher"_a = false)
         .def("add_gaussians", &RenderScene::add_gaussians, "positions"_a, "rotations"_a, "scales"_a, "opacities"_a,
              "sh"_a, "matrix"_a = py::none())
         .def("add_light", &RenderScene::add_light, "type"_a, "color"_a, "power"_a, "matrix"_a,
@@ -361,7 +367,8 @@ void register_render_bindings(py::module_& m) {
         .def("build", &RenderScene::build, "gaussian_mode"_a = "FLAT", "Builds the BVH; returns seconds")
         .def("update_mesh", &RenderScene::update_mesh, "index"_a, "vertices"_a, "triangles"_a, "matrix"_a = py::none(),
              "material"_a = 0, "face_materials"_a = py::none(), "normals"_a = py::none(), "uvs"_a = py::none(),
-             "pass_index"_a = 0u, "Replaces mesh `index` (as add_mesh); the next build rebuilds only its BVH")
+             "pass_index"_a = 0u, "holdout"_a = false, "shadow_catcher"_a = false,
+             "Replaces mesh `index` (as add_mesh); the next build rebuilds only its BVH")
         .def("update_gaussians", &RenderScene::update_gaussians, "index"_a, "positions"_a, "rotations"_a, "scales"_a,
              "opacities"_a, "sh"_a, "matrix"_a = py::none(),
              "Replaces Gaussian cloud `index`; the next build rebuilds only the chunks that changed")
@@ -394,6 +401,9 @@ void register_render_bindings(py::module_& m) {
              "asset"_a = "", "The names whose Cryptomatte ids mesh `index` gives (its materials give theirs)")
         .def("set_material_cryptomatte_name", &RenderScene::set_material_cryptomatte_name, "index"_a, "material"_a,
              "The name whose Cryptomatte id material `index` gives")
+        .def("set_gaussian_holdout", &RenderScene::set_gaussian_holdout, "index"_a, "holdout"_a,
+             "Holds out Gaussian cloud `index` (Blender's Holdout): camera rays take no colour from its Gaussians and "
+             "Combined's alpha loses their coverage")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")

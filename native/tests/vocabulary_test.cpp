@@ -58,6 +58,7 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     table.set(s, "cryptomatte_material", true);
     table.set(s, "cryptomatte_asset", true);
     table.set(s, "cryptomatte_levels", std::int64_t(4));
+    table.set(s, "shadow_catcher_pass", true);
     EXPECT_EQ(s.width, 1280);
     EXPECT_EQ(s.samples, 1000);
     EXPECT_EQ(s.max_bounces, 7);
@@ -81,10 +82,11 @@ TEST(RenderSettingNames, EverySettingIsSetByItsName) {
     EXPECT_TRUE(s.mist_pass);
     EXPECT_TRUE(s.cryptomatte_object && s.cryptomatte_material && s.cryptomatte_asset);
     EXPECT_EQ(s.cryptomatte_levels, 4);
+    EXPECT_TRUE(s.shadow_catcher_pass);
 
     std::set<std::string> names;
     for (const auto& p : table.parameters()) EXPECT_TRUE(names.insert(p.name).second) << p.name << " twice";
-    EXPECT_EQ(names.size(), 35u);  // every field of RenderSettings
+    EXPECT_EQ(names.size(), 36u);  // every field of RenderSettings
 }
 
 TEST(RenderSettingNames, MisspeltNamesAndWrongTypesAreErrorsThatSayWhat) {

@@ -229,14 +229,16 @@ def set_render_pass(render_pass, values):
         render_pass.rect = np.ascontiguousarray(values, dtype=np.float32).reshape(-1, render_pass.channels)
 
 
-# Blender 5.0 renamed render passes (RE_PASSNAME_* in the render pipeline's header): "IndexOB" and "IndexMA" became
-# "Object Index" and "Material Index", as Cycles registers them there (its other renames are of passes this engine
-# does not have). The core's film table names them as before 5.0.
+# Blender 5.0 renamed render passes (RE_PASSNAME_* in the render pipeline's header): "IndexOB", "IndexMA" and "Env"
+# became "Object Index", "Material Index" and "Environment", as Cycles registers them there (measured: Cycles' Render
+# Layers node sockets in 3.4 and 5.0; and the light passes' short names, below). The core's film
+# table names them as before 5.0.
 _LIGHT_PASS_NAMES_5_0 = {"Emit": "Emission", "DiffDir": "Diffuse Direct", "DiffInd": "Diffuse Indirect",
                          "DiffCol": "Diffuse Color", "GlossDir": "Glossy Direct", "GlossInd": "Glossy Indirect",
                          "GlossCol": "Glossy Color", "TransDir": "Transmission Direct",
                          "TransInd": "Transmission Indirect", "TransCol": "Transmission Color"}
-RENAMED_RENDER_PASSES = ({"IndexOB": "Object Index", "IndexMA": "Material Index", **_LIGHT_PASS_NAMES_5_0}
+RENAMED_RENDER_PASSES = ({"IndexOB": "Object Index", "IndexMA": "Material Index", "Env": "Environment",
+                          **_LIGHT_PASS_NAMES_5_0}
                          if _since(5, 0) else {})
 
 

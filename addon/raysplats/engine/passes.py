@@ -14,7 +14,7 @@ from ..blender import compat
 # Passes Blender already has a view-layer check box for; the others get one in RaySplatsViewLayerPasses.
 _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": "use_pass_mist",
                     "Position": "use_pass_position", "IndexOB": "use_pass_object_index",
-                    "IndexMA": "use_pass_material_index", "Vector": "use_pass_vector", "Emit": "use_pass_emit",
+                    "IndexMA": "use_pass_material_index", "Env": "use_pass_environment", "Vector": "use_pass_vector", "Emit": "use_pass_emit",
                     "DiffDir": "use_pass_diffuse_direct", "DiffInd": "use_pass_diffuse_indirect",
                     "DiffCol": "use_pass_diffuse_color", "GlossDir": "use_pass_glossy_direct",
                     "GlossInd": "use_pass_glossy_indirect", "GlossCol": "use_pass_glossy_color",
@@ -23,6 +23,9 @@ _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": 
 # The check boxes' labels where the pass's name is not one: Blender's own labels of use_pass_object_index and
 # use_pass_material_index (the passes were named "IndexOB" and "IndexMA" before 5.0).
 _LABELS = {"IndexOB": "Object Index", "IndexMA": "Material Index"}
+# Passes whose check box is the Cycles add-on's (its view-layer property group, which every Blender here has), so that
+# one check box serves both engines; without Cycles, a RaySplats check box.
+_CYCLES_TOGGLES = {"Shadow Catcher": "use_pass_shadow_catcher"}
 _ALWAYS = "Combined"
 # Blender's (and Cycles') value for "nothing there" in float passes, e.g. the depth of the background.
 _FAR = 1e10
@@ -45,6 +48,9 @@ def _toggle(view_layer, channel):
         return None
     if name in _BLENDER_TOGGLES:
         return view_layer, _BLENDER_TOGGLES[name]
+    cycles = getattr(view_layer, "cycles", None)
+    if name in _CYCLES_TOGGLES and hasattr(cycles, _CYCLES_TOGGLES[name]):
+        return cycles, _CYCLES_TOGGLES[name]
     return view_layer.raysplats_passes, "use_pass_" + channel["key"]
 
 
@@ -86,8 +92,10 @@ def vector_pass_enabled(view_layer):
 
 def core_settings(view_layer):
     """The core's render settings that follow the view layer's passes: the Mist pass's sums, the split of the light
-    and the Cryptomatte passes are computed only when the layer has them."""
+    and the Cryptomatte passes are computed only when the layer has them, and Combined leaves shadow catchers
+    transparent when it has the Shadow Catcher pass."""
     settings = {"mist_pass": bool(view_layer.use_pass_mist), "light_passes": light_passes_enabled(view_layer),
+                "shadow_catcher_pass": shadow_catcher_pass_enabled(view_layer),
                 "cryptomatte_levels": int(view_layer.pass_cryptomatte_depth)}
     for crypto in cryptomatte_types():
         settings[crypto["key"]] = bool(getattr(view_layer, crypto["toggle"]))
@@ -131,6 +139,11 @@ def cryptomatte_metadata(view_layer, names):
                        prefix + "conversion": "uint32_to_float32",
                        prefix + "manifest": json.dumps(manifest, separators=(",", ":"), ensure_ascii=False)})
     return fields
+
+
+def shadow_catcher_pass_enabled(view_layer):
+    """Whether the view layer writes the Shadow Catcher pass (Combined then leaves shadow catchers transparent)."""
+    return any(enabled(view_layer, channel) for channel in channels() if channel["key"] == "shadow_catcher")
 
 
 def blender_name(channel):

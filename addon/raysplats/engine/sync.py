@@ -67,6 +67,20 @@ def cryptomatte_asset(obj):
     return obj.name
 
 
+def masks(obj, view_layer, parent=None):
+    """(holdout, shadow catcher) of an object drawn in the view layer, as Cycles reads them (blender/object.cpp): held
+    out by its Holdout or a collection's in the view layer (Object.holdout_get), an instance by its instancer's; a
+    shadow catcher by its own Shadow Catcher or its instancer's."""
+    source = (parent or obj).original
+    return (bool(source.holdout_get(view_layer=view_layer)),
+            bool(obj.original.is_shadow_catcher or source.is_shadow_catcher))
+
+
+def instance_masks(instance, view_layer):
+    """masks() of a depsgraph object instance."""
+    return masks(instance.object, view_layer, instance.parent if instance.is_instance else None)
+
+
 def _world(scene):
     world = scene.world
     if world is None:
@@ -214,6 +228,9 @@ class SceneSync:
 
         # The names given to the core for the Cryptomatte passes, by kind: their manifests (passes.py).
         self.cryptomatte_names = {"object": set(), "material": set(), "asset": set()}
+
+        self.view_layer = depsgraph.view_layer
+        self.masks = {}  # original object (drawn once) -> masks() as given to the native scene
         self._build(depsgraph)
 
     @staticmethod
@@ -333,10 +350,15 @@ class SceneSync:
         self.membership = collections.Counter()
         for instance in depsgraph.object_instances:
             obj = instance.object
-            self.membership[(obj.original.as_pointer(), instance.is_instance)] += 1
+            object_masks = instance_masks(instance, depsgraph.view_layer)
+            self.membership[(obj.original.as_pointer(), instance.is_instance, object_masks)] += 1
             matrix = instance.matrix_world
             uid = None if instance.is_instance else obj.original.as_pointer()
             kind = splat_object.kind_of(obj)
+            holdout, shadow_catcher = object_masks
+            if shadow_catcher and kind is not None:
+                self._warn_once(f"Splat object '{obj.name}' is a Shadow Catcher, which Gaussians cannot be in "
+                                "RaySplats: it is drawn as an ordinary object")
             if kind is not None:
                 for message in splat_object.fidelity_warnings(obj.original, for_render=not self.interactive):
                     self._warn_once(message)
@@ -360,9 +382,12 @@ class SceneSync:
                 render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
                 material = first_material(obj)
                 self._name_for_cryptomatte(index, obj, material.name if material is not None else "")
+                if holdout:
+                    render_scene.set_gaussian_holdout(index, True)
                 if uid is None:
                     continue
                 self.pass_indices[uid] = pass_indices(obj)
+                self.masks[uid] = object_masks
                 if kind == splat_object.POLYGONS:
                     self.shading[uid] = _object_shading(obj)
                     self.clouds[uid] = (index, len(cloud["opacities"]))
@@ -377,13 +402,15 @@ class SceneSync:
                 vertices, triangles, face_materials, uvs = arrays
                 with self.clock.stage("scene"):
                     index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
-                                                  face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index)
+                                                  face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index,
+                                                  holdout=holdout, shadow_catcher=shadow_catcher)
                 stats.triangles += len(triangles)
                 self.instances.append((motion_blur.instance_key(instance), True, index))
                 self._name_for_cryptomatte(index, obj)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
                     self.pass_indices[uid] = pass_indices(obj)
+                    self.masks[uid] = object_masks
             elif obj.type == "LIGHT":
                 render_scene.add_light(**_light_kwargs(obj.data, matrix))
                 stats.lights += 1
@@ -469,9 +496,11 @@ class SceneSync:
 
     @staticmethod
     def _membership(depsgraph):
-        """The objects the depsgraph draws (original pointers) and how many times each, as `membership` records them
-        when the scene is built: a collection update that leaves them as they were changes nothing of the scene."""
-        return collections.Counter((instance.object.original.as_pointer(), instance.is_instance)
+        """The objects the depsgraph draws (original pointers, their masks()) and how many times each, as `membership`
+        records them when the scene is built: a collection update that leaves them as they were changes nothing of the
+        scene (a collection's Holdout does)."""
+        return collections.Counter((instance.object.original.as_pointer(), instance.is_instance,
+                                    instance_masks(instance, depsgraph.view_layer))
                                    for instance in depsgraph.object_instances)
 
     # Datablocks whose changes the in-place update cannot express: the scene is built again.
@@ -491,6 +520,8 @@ class SceneSync:
             return True  # the object's Gaussian Shading (a property: neither geometry nor transform)
         if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
             return True  # its pass index, or its first material's (neither geometry nor transform either)
+        if uid in self.masks and masks(data, self.view_layer) != self.masks[uid]:
+            return True  # its Holdout or Shadow Catcher
         if not (update.is_updated_geometry or update.is_updated_transform):
             return False  # selection, active object
         # Objects the scene holds nothing of: the camera (not part of the scene), and those whose changes reach it
@@ -519,6 +550,8 @@ class SceneSync:
             matrix = np.array(data.matrix_world, dtype=np.float32)
             if uid in self.pass_indices and pass_indices(data) != self.pass_indices[uid]:
                 return "rebuild"  # (rare: an animated pass index)
+            if uid in self.masks and masks(data, self.view_layer) != self.masks[uid]:
+                return "rebuild"  # its Holdout or Shadow Catcher
             if uid in self.clouds:
                 shading = _object_shading(data)
                 if shading != self.shading.get(uid):
@@ -554,7 +587,8 @@ class SceneSync:
                     self.meshes[uid] = (index, arrays)
                 vertices, triangles, face_materials, uvs = arrays
                 self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
-                                              uvs=uvs, pass_index=data.pass_index)
+                                              uvs=uvs, pass_index=data.pass_index, holdout=self.masks[uid][0],
+                                              shadow_catcher=self.masks[uid][1])
                 result = "updated"
             else:
                 return "rebuild"  # a new object, an instancer, a light
@@ -669,12 +703,12 @@ def frame_seed(scene):
 # Settings made from Blender's own scene data (image size, samples per render kind, the frame's seed, Film >
 # Transparent) or that apply only to the final render (adaptive sampling).
 # denoising_data: on when the render denoises or writes the denoising passes (the callers say which).
-# mist_pass, light_passes and the Cryptomatte settings: from the view layer's passes (passes.core_settings), in final
-# renders.
+# mist_pass, light_passes, shadow_catcher_pass and the Cryptomatte settings: from the view layer's passes
+# (passes.core_settings), in final renders.
 DERIVED_SETTINGS = frozenset({"width", "height", "samples", "seed", "transparent_background", "adaptive_sampling",
                               "adaptive_threshold", "adaptive_min_samples", "denoising_data", "mist_pass",
-                              "light_passes", "cryptomatte_object", "cryptomatte_material", "cryptomatte_asset",
-                              "cryptomatte_levels"})
+                              "light_passes", "shadow_catcher_pass", "cryptomatte_object", "cryptomatte_material",
+                              "cryptomatte_asset", "cryptomatte_levels"})
 # Settings the add-on leaves at the core's defaults: tuning and test switches that do not change the image, and the
 # render region, which final.py sets from the render border.
 CORE_ONLY_SETTINGS = frozenset({"tile_size", "gather_buffer_size", "jitter", "speculative_ends", "region_x",
@@ -692,14 +726,17 @@ def copied_settings(core):
     return names
 
 
-def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False):
+def render_settings(scene, width, height, samples, seed_offset=0, adaptive=False, denoising_data=False,
+                    shadow_catcher_pass=False):
     """The core's render settings of the scene. `adaptive`: the final render's adaptive sampling settings apply (the
     viewport refines in passes of its own and leaves it off). `denoising_data`: the core fills the denoiser's guide
-    channels (Denoising Albedo and Normal)."""
+    channels (Denoising Albedo and Normal). `shadow_catcher_pass`: the render writes the Shadow Catcher pass (Combined
+    then leaves shadow catchers transparent, as Cycles)."""
     settings = scene.raysplats
     values = {name: getattr(settings, name) for name in copied_settings(native.core())}
     values.update(width=width, height=height, samples=samples, seed=(frame_seed(scene) + seed_offset) & 0xFFFFFFFF,
-                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data))
+                  transparent_background=bool(scene.render.film_transparent), denoising_data=bool(denoising_data),
+                  shadow_catcher_pass=bool(shadow_catcher_pass))
     if adaptive and settings.use_adaptive_sampling:
         values.update(adaptive_sampling=True, adaptive_threshold=settings.adaptive_threshold,
                       adaptive_min_samples=settings.adaptive_min_samples)

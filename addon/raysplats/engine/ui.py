@@ -20,6 +20,9 @@ _COMPATIBLE_PANELS = (
     # View Layer > Passes > Cryptomatte: Object, Material, Asset and Levels, Blender's own settings that Cycles' panel
     # of the same name draws (EEVEE's Accurate Mode is drawn only for EEVEE).
     "VIEWLAYER_PT_layer_passes_cryptomatte",
+    # Object > Visibility: Show In and Mask > Holdout (Object.is_holdout), which the engine renders as Cycles does;
+    # a collection's Holdout is the Outliner's own toggle. draw_shadow_catcher adds Blender's Shadow Catcher there.
+    "OBJECT_PT_visibility",
 )
 
 
@@ -291,8 +294,8 @@ class RAYSPLATS_VIEWLAYER_PT_passes(RaySplatsPanel, bpy.types.Panel):
 
 class RAYSPLATS_VIEWLAYER_PT_passes_light(RaySplatsPanel, bpy.types.Panel):
     """View Layer > Passes > Light: Blender's own light pass check boxes, as Cycles draws them (Cycles' own panel
-    also draws Volume, Environment, Ambient Occlusion and Shadow Catcher check boxes, passes this engine does not
-    write, so it is not declared compatible)."""
+    also draws Volume and Ambient Occlusion check boxes, passes this engine does not write, so it is not declared
+    compatible; Environment and Shadow Catcher are in the Passes panel's list)."""
     bl_label = "Light"
     bl_context = "view_layer"
     bl_parent_id = "VIEWLAYER_PT_layer_passes"
@@ -301,6 +304,13 @@ class RAYSPLATS_VIEWLAYER_PT_passes_light(RaySplatsPanel, bpy.types.Panel):
         self.layout.use_property_split = True
         self.layout.use_property_decorate = False
         passes.draw_light_pass_toggles(self.layout, context.view_layer)
+
+
+def draw_shadow_catcher(self, context):
+    """Object > Visibility > Mask: Blender's Shadow Catcher (Object.is_shadow_catcher), which Cycles draws in its own
+    Visibility panel (not shown for this engine) and this engine renders on meshes."""
+    if context.engine == ENGINE:
+        self.layout.prop(context.object, "is_shadow_catcher")
 
 
 _CLASSES = (RAYSPLATS_RENDER_PT_sampling, RAYSPLATS_RENDER_PT_sampling_denoise, RAYSPLATS_RENDER_PT_gaussians,
@@ -319,9 +329,11 @@ def register():
         panel = getattr(bpy.types, name, None)
         if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
             panel.COMPAT_ENGINES.add(ENGINE)
+    bpy.types.OBJECT_PT_visibility.append(draw_shadow_catcher)
 
 
 def unregister():
+    bpy.types.OBJECT_PT_visibility.remove(draw_shadow_catcher)
     for name in _COMPATIBLE_PANELS:
         panel = getattr(bpy.types, name, None)
         if panel is not None and hasattr(panel, "COMPAT_ENGINES"):

@@ -24,8 +24,10 @@ const char* CameraSplatting::traced_reason(const Scene::Impl& scene, const Rende
         return "needs a camera without depth of field";
     // Its splats are projected once per frame: a camera or object moving during the shutter is not there.
     if (camera.motion.size() >= 2 || scene.has_motion()) return "needs a scene without motion blur";
-    for (const auto& set : scene.gaussians)
+    for (const auto& set : scene.gaussians) {
         if (shader.shading(set->index) != GaussianShading::Baked) return "needs every Gaussian object Baked";
+        if (set->holdout) return "needs no Gaussian object held out";
+    }
     return nullptr;
 }
 

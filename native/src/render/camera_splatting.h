@@ -52,13 +52,14 @@ namespace raysplats {
 class CameraSplatting {
 public:
     // Whether camera-ray splatting renders this frame's camera rays (the setting on, a perspective camera without
-    // depth of field, every Gaussian cloud BAKED).
+    // depth of field, every Gaussian cloud BAKED and none held out).
     static bool applies(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                         const GaussianShader& shader);
     // Why it does not, though the setting is on, in the user's words ("needs a perspective camera", "needs a camera
-    // without depth of field", "needs a scene without motion blur", "needs every Gaussian object Baked"); null when
-    // it does or the setting is off. Its splats are one pinhole projection: a thin lens's rays leave the aperture at
-    // many points, and a moving object or camera is at many places during the shutter.
+    // without depth of field", "needs a scene without motion blur", "needs every Gaussian object Baked", "needs no
+    // Gaussian object held out"); null when it does or the setting is off. Its splats are one pinhole projection: a
+    // thin lens's rays leave the aperture at many points, a moving object or camera is at many places during the
+    // shutter, and its blend has no held-out fraction.
     static const char* traced_reason(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                                      const GaussianShader& shader);
 

@@ -63,7 +63,7 @@ inline float display_part(const float* sums, int k, bool own = true) {
 }
 
 void radiance_and_coverage(const SampleRecord& s, float* out) {
-    out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha;
+    out[0] = s.radiance[0], out[1] = s.radiance[1], out[2] = s.radiance[2], out[3] = s.alpha - s.holdout;
 }
 void depth_of(const SampleRecord& s, float* out) { out[0] = s.depth; }
 void normal_of(const SampleRecord& s, float* out) { out[0] = s.normal[0], out[1] = s.normal[1], out[2] = s.normal[2]; }
@@ -95,6 +95,12 @@ template <LightPass pass>
 void light_of(const SampleRecord& s, float* out) {
     const std::array<float, 3>& v = s.light[std::size_t(pass)];
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
+}
+void environment_of(const SampleRecord& s, float* out) {
+    out[0] = s.environment[0], out[1] = s.environment[1], out[2] = s.environment[2];
+}
+void shadow_catcher_of(const SampleRecord& s, float* out) {
+    out[0] = s.shadow_catcher[0], out[1] = s.shadow_catcher[1], out[2] = s.shadow_catcher[2];
 }
 
 constexpr float kNoSurface = std::numeric_limits<float>::infinity();
@@ -168,6 +174,16 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::Vector, "vector", "Vector", "XYZW", "VECTOR", SampleCombination::FirstSample, 0.0f,
      "Motion of the depth's point on the image to the previous frame (XY) and from the next (ZW), pixels, y up "
      "(first sample; 0: none, or no camera frame motion)", vector_of},
+}
+    // Blender's Env pass (ViewLayer.use_pass_environment), Cycles' layout; averaged as Cycles averages it.
+    {FilmChannel::Environment, "environment", "Env", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "The world's colour where the camera ray escapes, times its transmittance (0 where it stops on a surface)",
+     environment_of},
+    // Cycles' Shadow Catcher pass (its layout; the check box is Cycles' view_layer.cycles.use_pass_shadow_catcher):
+    // the plate's multiplier, 1 where no shadow catcher is seen.
+    {FilmChannel::ShadowCatcher, "shadow_catcher", "Shadow Catcher", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
+     "Shadow catchers: the lights' direct light with shadows over that without, seen through what is in front "
+     "(1: no shadow catcher)", shadow_catcher_of},
 }};
 
 // Rows in FilmChannel order; a Mean or Sum channel's empty value is 0, what a tile's sums hold for a pixel no sample
@@ -414,9 +430,15 @@ void FilmTile::write_to(Film& film, bool transparent_background) const {
     if (light_passes_) complete_light_passes(film);
     if (!cryptomatte_.empty()) write_cryptomatte(film);
     if (transparent_background) return;
+    // An opaque background covers every pixel: alpha 1 less the held-out fraction, which is the coverage (the Alpha
+    // channel) less Combined's alpha, both means of the same samples (exactly 1 where nothing is held out).
     FloatBuffer& rgba = film.rgba();
+    const FloatBuffer& coverage = film.alpha();
     for (int y = y0_; y < y1_; ++y)
-        for (int x = x0_; x < x1_; ++x) rgba[4 * (std::size_t(y) * film.width + x) + 3] = 1.0f;
+        for (int x = x0_; x < x1_; ++x) {
+            const std::size_t pixel = std::size_t(y) * film.width + x;
+            rgba[4 * pixel + 3] = 1.0f - (coverage[pixel] - rgba[4 * pixel + 3]);
+        }
 }
 
 namespace {

@@ -91,6 +91,7 @@ struct GaussianSet {
     std::optional<GaussianShading> shading;  // Scene::set_gaussian_shading: none follows the render settings
     std::uint32_t object_pass_index = 0, material_pass_index = 0;  // Scene::set_gaussian_pass_indices
     CryptomatteIds cryptomatte_ids{};  // Scene::set_gaussian_cryptomatte_names
+    bool holdout = false;                                           // Scene::set_gaussian_holdout
     // Primitives are stored in Morton order of their centres (primID = position in this order), so that
     // Gaussians that are close in space, and therefore visited together by a traversal, share cache lines and
     // chunks are compact in space.

@@ -113,7 +113,9 @@ inline void GaussianSegmentTracer::composite(Segment& seg, const Ray& ray, std::
     const GaussianSet& set = gaussian_of(geom, prim);
     const float t_before = seg.transmittance;
     const GaussianShading shading = shader_.shading(set.index);
-    if (shading == GaussianShading::Baked) {
+    if (set.holdout && ray.camera_distance >= 0.0f) {
+        seg.holdout += t_before * alpha;  // held out: its coverage leaves Combined's alpha, it adds no colour
+    } else if (shading == GaussianShading::Baked) {
         seg.radiance += t_before * alpha * gaussian_color(set, prim, ray, rng, c);
     } else {
         add_shaded(seg, set, prim, shading, ray, t, t_before * alpha, rng);
@@ -161,12 +163,11 @@ inline bool GaussianSegmentTracer::consume_gather(Segment& seg, LaneState& L, co
             seg.terminated = true;
             seg.end = h.t;
             add_mist(seg, ray, h.t, seg.transmittance);
-            if (st_.denoising_data || cryptomatte_) {
-                std::uint32_t prim_in_set = h.prim;
-                const GaussianSet& set = gaussian_of(h.geom, prim_in_set);
-                add_guides(seg, set, prim_in_set, ray, seg.transmittance);
-                add_cryptomatte(seg, set, ray, seg.transmittance);
-            }
+            std::uint32_t prim_in_set = h.prim;
+            const GaussianSet& set = gaussian_of(h.geom, prim_in_set);
+            add_guides(seg, set, prim_in_set, ray, seg.transmittance);
+            add_cryptomatte(seg, set, ray, seg.transmittance);
+            if (set.holdout && ray.camera_distance >= 0.0f) seg.holdout += seg.transmittance;
             return true;
         }
     }
@@ -226,7 +227,8 @@ inline void GaussianSegmentTracer::consume_stochastic(Segment& seg, LaneState& L
         // the film takes the camera segment's display values to linear only after averaging them (SampleRecord).
         const GaussianSet& set = gaussian_of(inst, prim);
         const GaussianShading shading = shader_.shading(set.index);
-        if (shading == GaussianShading::Baked) seg.radiance = gaussian_color(set, prim, ray, rng, c);
+        if (set.holdout && ray.camera_distance >= 0.0f) seg.holdout = 1.0f;
+        else if (shading == GaussianShading::Baked) seg.radiance = gaussian_color(set, prim, ray, rng, c);
         else add_shaded(seg, set, prim, shading, ray, tfar, 1.0f, rng);
         seg.transmittance = 0.0f;
         seg.terminated = true;

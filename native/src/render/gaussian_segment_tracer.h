@@ -50,6 +50,9 @@ struct Segment {
     // Camera rays with Cryptomatte passes (RenderSettings::cryptomatte_*): each Gaussian cloud's weight T_i a_i summed
     // by its ids, weighted as for mist. The mesh hit is the path integrator's to add. Empty otherwise.
     CryptomatteCoverage cryptomatte;
+    // Camera rays: the coverage of held-out Gaussians (GaussianSet::holdout), sum T_i a_i over them, a terminating
+    // one taking the transmittance left as for mist; they add no radiance. 0 otherwise.
+    float holdout = 0.0f;
     float end = kInf;          // where the segment ended: its terminating Gaussian or mesh hit (+inf: escaped)
     std::uint32_t gaussians = 0;  // Gaussians composited (sorted) or accepted (stochastic) on it
     // The LIT and BAKED_SHADOWED Gaussians on it, which the path integrator shades (`radiance` has the BAKED ones).

@@ -60,6 +60,11 @@ inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const
     return sf;
 }
 
+// How far a ray leaves a surface point `p` (against self-intersection): relative to its coordinates' magnitude.
+inline float offset_epsilon(const glm::vec3& p) {
+    return 1e-4f * std::max(1.0f, std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
+}
+
 // The nearest area light that `ray` sees before its tmax (Cycles lights_intersect); -1 if none.
 inline int PathIntegrator::nearest_light_hit(const Ray& ray, LightHit& hit) const {
     int best = -1;
@@ -122,6 +127,11 @@ struct PathIntegrator::PathState {
     glm::vec3 guide_albedo{0.0f}, guide_normal{0.0f};
     // The Cryptomatte passes' coverage (SampleRecord::cryptomatte), weighted like mist.
     CryptomatteCoverage cryptomatte;
+    // The held-out fraction, the Environment pass and the Shadow Catcher pass (SampleRecord::holdout, environment,
+    // shadow_catcher).
+    float holdout = 0.0f;
+    glm::vec3 environment{0.0f};
+    glm::vec3 shadow_catcher{1.0f};
     std::uint32_t camera_gaussians = 0;  // composited or accepted along the camera segment
     // depth is the camera segment's mesh hit, whose normal, object and material the surface gives (mesh_data_passes)
     bool normal_at_mesh = false;
@@ -180,6 +190,7 @@ inline Segment PathIntegrator::trace_with_lights(const Ray& ray, const Segment* 
     seg.mist_clearance = s1.mist_clearance + s1.transmittance * s2.mist_clearance;
     seg.guide_albedo = s1.guide_albedo + s1.transmittance * s2.guide_albedo;
     seg.guide_normal = s1.guide_normal + s1.transmittance * s2.guide_normal;
+    seg.holdout = s1.holdout + s1.transmittance * s2.holdout;
     if (cryptomatte_) {
         seg.cryptomatte = s1.cryptomatte;
         seg.cryptomatte.add_scaled(s2.cryptomatte, s1.transmittance);
@@ -245,6 +256,7 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
         p.guide_albedo += p.camera_transmittance * seg.guide_albedo;
         p.guide_normal += p.camera_transmittance * seg.guide_normal;
         if (cryptomatte_) p.cryptomatte.add_scaled(seg.cryptomatte, p.camera_transmittance);
+        p.holdout += p.camera_transmittance * seg.holdout;
         if (p.depth == kInf && seg.depth < kInf) {
             p.depth = seg.depth;
             p.normal = seg.normal;
@@ -296,7 +308,8 @@ PathIntegrator::GaussianBounce PathIntegrator::shade_gaussians(PathState& p, con
 
 // Where the segment ends other than on a mesh the path shades: it stopped in the Gaussians (opaque), or escaped to
 // the world. Returns whether the path ends there (it goes on when it bounces off the segment's Gaussians).
-bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce) const {
+bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce,
+                                 Counters& c) const {
     if (seg.terminated) {
         if (p.camera_segment) p.alpha = 1.0f;
         return !gaussian_bounce;
@@ -304,6 +317,9 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     if (!seg.mesh) {
         if (p.camera_segment) {
             p.alpha = 1.0f - (1.0f - p.alpha) * seg.transmittance;
+            // The Environment pass: the world the camera ray reaches, times its transmittance (Cycles writes the
+            // background times the path's throughput, with or without a transparent film).
+            p.environment += (p.camera_transmittance * seg.transmittance) * world_;
             if (!st_.transparent_background) {
                 p.radiance += p.beta * behind_weight * world_;
                 // The world's colour joins the denoising albedo of an escaping camera ray, as in Cycles
@@ -320,6 +336,12 @@ bool PathIntegrator::end_segment(PathState& p, const Segment& seg, float behind_
     }
     if (gaussian_bounce && p.camera_segment) {
         p.alpha = 1.0f;  // the mesh behind covers the pixel
+        const MeshDesc& mesh = s_.meshes[s_.top[seg.top_geom].index]->desc;
+        if (mesh.holdout) p.holdout += p.camera_transmittance * seg.transmittance;
+        // What a held-out mesh or a shadow catcher gives the pixel's alpha and the Shadow Catcher pass does not
+        // depend on the branch the path takes, so this branch adds it as mesh_hit does in the other; a catcher's world
+        // colour is radiance, which only the other branch adds (weighted by its probability).
+        if (mesh.shadow_catcher) catch_shadows(p, seg, surface(seg, p.ray), false, c);
         add_mesh_mist(p, seg);
         if (st_.denoising_data || p.normal_at_mesh || cryptomatte_) {
             const Surface sf = surface(seg, p.ray);
@@ -396,8 +418,7 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
         p.normal = ng;
         mesh_data_passes(p, seg, sf);
     }
-    const float eps =
-        1e-4f * std::max(1.0f, std::max(std::abs(sf.p.x), std::max(std::abs(sf.p.y), std::abs(sf.p.z))));
+    const float eps = offset_epsilon(sf.p);
     if (mat.alpha < 1.0f && p.rng.next() >= mat.alpha && ++p.passes < 256) {
         // Stochastic coverage: continue straight through.
         float camera_distance = -1.0f;
@@ -420,8 +441,57 @@ bool PathIntegrator::mesh_hit(PathState& p, const Segment& seg, Counters& c) con
             mesh_data_passes(p, seg, sf);
         }
         p.camera_segment = false;
+        const MeshDesc& mesh = s_.meshes[s_.top[seg.top_geom].index]->desc;
+        if (mesh.holdout) {
+            // Cycles (shade_surface.h, integrate_surface_holdout): a held-out surface seen by the camera ray adds
+            // the path's throughput to the pixel's transparency and, held out entirely, ends the path: no colour.
+            p.holdout += p.camera_transmittance * seg.transmittance;
+            return false;
+        }
+        if (mesh.shadow_catcher) {
+            catch_shadows(p, seg, sf, true, c);
+            return false;
+        }
     }
     return shade_hit(p, sf, mat, entering, ng, eps, c);
+}
+
+// The camera segment's shadow catcher `seg` (surface `sf`; MeshDesc::shadow_catcher): the ratio r of the lights'
+// direct light at the point with their visibility (meshes and Gaussians) to that without, per channel, 1 where none
+// reaches it (Cycles' safe_divide_shadow_catcher); then, with T the transmittance in front and m = mean(r): the
+// Shadow Catcher pass 1 - T (1 - r), the ratio alpha-overed on white; and Combined as Cycles' (kernel/film/read.h):
+// with the pass written, the catcher held out (transparent, the shadow being the pass's), else its approximate shadow
+// catcher (film_calculate_shadow_catcher_matte_with_shadow): alpha T (1 - m) and no colour with a transparent
+// background, else (`add_world`) the world's colour times T m.
+void PathIntegrator::catch_shadows(PathState& p, const Segment& seg, const Surface& sf, bool add_world,
+                                   Counters& c) const {
+    const Material& mat = s_.materials.empty() ? default_material_ : s_.materials[sf.material];
+    const bool entering = glm::dot(sf.ng, p.ray.d) < 0.0f;
+    const glm::vec3 ng = entering ? sf.ng : -sf.ng;
+    glm::vec3 ns = entering ? sf.ns : -sf.ns;
+    const glm::vec3 wo = -p.ray.d;
+    if (glm::dot(ns, wo) <= 0.0f) ns = ng;
+    const Bsdf bsdf(mat, material_base_color(mat, sf.uv), ns, wo, entering, LobeFilter{});
+    const glm::vec3 p_out = sf.p + ng * offset_epsilon(sf.p);
+    glm::vec3 shadowed(0.0f), unshadowed(0.0f);
+    for (const Light& l : s_.lights) {
+        LightSample ls;
+        if (!sample_light(l, p_out, p.rng, ls) || glm::dot(ls.wi, ng) <= 0.0f) continue;
+        float pdf;
+        const glm::vec3 light = bsdf.eval(wo, ls.wi, pdf) * std::max(glm::dot(ns, ls.wi), 0.0f) * ls.value;
+        if (!(light.x > 0.0f || light.y > 0.0f || light.z > 0.0f)) continue;
+        unshadowed += light;
+        shadowed += light * shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
+    }
+    glm::vec3 ratio(1.0f);
+    for (int k = 0; k < 3; ++k)
+        if (unshadowed[k] > 0.0f) ratio[k] = shadowed[k] / unshadowed[k];
+    const float t = p.camera_transmittance * seg.transmittance;
+    const float lit = (ratio.x + ratio.y + ratio.z) / 3.0f;
+    p.shadow_catcher = glm::vec3(1.0f) - t * (glm::vec3(1.0f) - ratio);
+    if (st_.shadow_catcher_pass) p.holdout += t;
+    else if (st_.transparent_background) p.holdout += t * lit;
+    else if (add_world) p.radiance += p.beta * world_ * lit;
 }
 
 // Shading at a mesh hit: its emission, next-event estimation with the lights, then the next bounce. Returns whether
@@ -553,6 +623,9 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};
     record.gaussian_count = float(p.camera_gaussians);
     if (cryptomatte_) record.cryptomatte = p.cryptomatte;
+    record.holdout = p.holdout;
+    record.environment = {p.environment.x, p.environment.y, p.environment.z};
+    record.shadow_catcher = {p.shadow_catcher.x, p.shadow_catcher.y, p.shadow_catcher.z};
     return record;
 }
 
@@ -616,7 +689,7 @@ SampleRecord PathIntegrator::path(Ray ray, Sampler& rng, Counters& c, const Segm
         first = nullptr;
         const float behind_weight = add_gaussians(p, seg);
         const GaussianBounce gaussian_bounce = shade_gaussians(p, seg, c);
-        if (end_segment(p, seg, behind_weight, gaussian_bounce.taken)) break;
+        if (end_segment(p, seg, behind_weight, gaussian_bounce.taken, c)) break;
         if (gaussian_bounce.taken) {
             if (!bounce_off_gaussians(p, gaussian_bounce)) break;
             continue;

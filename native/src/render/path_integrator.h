@@ -51,7 +51,7 @@ private:
     // The camera segment and every later one: the Gaussians up to a mesh hit, their shading, and how it ends.
     float add_gaussians(PathState& p, Segment& seg) const;
     GaussianBounce shade_gaussians(PathState& p, const Segment& seg, Counters& c) const;
-    bool end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce) const;
+    bool end_segment(PathState& p, const Segment& seg, float behind_weight, bool gaussian_bounce, Counters& c) const;
     bool bounce_off_gaussians(PathState& p, const GaussianBounce& bounce) const;
     // Shading at a mesh hit, and the next bounce.
     bool mesh_hit(PathState& p, const Segment& seg, Counters& c) const;
@@ -66,6 +66,7 @@ private:
     void mesh_data_passes(PathState& p, const Segment& seg, const Surface& sf) const;
     void add_mesh_guides(PathState& p, const Segment& seg, const Surface& sf, bool entering) const;
     void add_mesh_cryptomatte(PathState& p, const Segment& seg, const Surface& sf) const;
+    void catch_shadows(PathState& p, const Segment& seg, const Surface& sf, bool add_world, Counters& c) const;
     SampleRecord sample_record(PathState& p) const;
     // The light passes (RenderSettings::light_passes, SampleRecord::light).
     void add_emitted(PathState& p, const glm::vec3& light, int level, bool world = false) const;

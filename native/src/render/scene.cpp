@@ -368,6 +368,11 @@ void Scene::set_material_cryptomatte_name(std::uint32_t index, std::string_view 
     impl_->materials[index].cryptomatte_id = cryptomatte_id_or_none(material);
 }
 
+void Scene::set_gaussian_holdout(std::uint32_t index, bool holdout) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    impl_->gaussians[index]->holdout = holdout;
+}
+
 std::uint32_t Scene::add_light(const Light& light) {
     light.validate(("light " + std::to_string(impl_->lights.size())).c_str());
     impl_->lights.push_back(light);

@@ -97,6 +97,20 @@ struct SampleRecord {
     // (raster(previous) - raster(now), raster(now) - raster(next)); 0 where there is no surface, or where the camera
     // has no frame motion (Camera::frame_motion) or is panoramic (src/render/motion_vectors.h).
     std::array<float, 4> vector{0.0f, 0.0f, 0.0f, 0.0f};
+    // Blender's Holdout (MeshDesc::holdout, Scene::set_gaussian_holdout), as Cycles' film_write_holdout: the fraction
+    // of the camera ray held out, sum of the transmittance in front of each held-out surface times its alpha (a
+    // held-out mesh takes all that is left; a terminating Gaussian too, as for mist). Combined's alpha is the
+    // coverage less it (1 less it with an opaque background), so a held-out object leaves alpha 0 and no colour
+    // where it is seen; the Alpha pass stays the coverage.
+    float holdout = 0.0f;
+    // The Environment pass (Cycles' PASS_BACKGROUND): the world's colour times the camera ray's transmittance where it
+    // escapes (through Gaussians and transparent meshes), whether or not the background is transparent; 0 where it
+    // stops on a surface.
+    std::array<float, 3> environment{0.0f, 0.0f, 0.0f};
+    // The Shadow Catcher pass (MeshDesc::shadow_catcher): 1 - T (1 - r) where the camera ray meets a shadow catcher
+    // through transmittance T, r the ratio of the lights' direct light there with visibility to that without; 1
+    // elsewhere. Multiplying a photograph by it darkens it where the scene's objects shadow the catcher.
+    std::array<float, 3> shadow_catcher{1.0f, 1.0f, 1.0f};
     // Gaussians the camera segment composited (sorted) or accepted (stochastic: 0 or 1 per segment) before it
     // ended; a debug measure of how much each pixel costs.
     float gaussian_count = 0.0f;
@@ -109,9 +123,9 @@ enum class FilmChannel : std::uint8_t {
     Combined, Depth, Normal, Alpha, GaussianCount, SampleCount, Mist, Position, ObjectIndex, MaterialIndex,
     DenoisingAlbedo, DenoisingNormal,
     Emission, DiffuseDirect, DiffuseIndirect, DiffuseColor, GlossyDirect, GlossyIndirect, GlossyColor,
-    TransmissionDirect, TransmissionIndirect, TransmissionColor, Vector
+    TransmissionDirect, TransmissionIndirect, TransmissionColor, Vector, Environment, ShadowCatcher
 };
-constexpr std::size_t kFilmChannelCount = 23;
+constexpr std::size_t kFilmChannelCount = 25;
 
 
 // How a channel combines the samples of a pixel.
@@ -170,7 +184,8 @@ struct RenderStats {
     // entries, and the bytes of both.
     bool camera_ray_splatting = false;
     // With the setting on, why it did not draw them (CameraSplatting::traced_reason: "needs a perspective camera",
-    // "needs a camera without depth of field", "needs every Gaussian object Baked"); empty when it did or was off.
+    // "needs a camera without depth of field", "needs every Gaussian object Baked", "needs no Gaussian object held
+    // out"); empty when it did or was off.
     std::string camera_rays_traced_reason;
     double splat_prepass_seconds = 0.0;
     std::uint64_t splats = 0;
@@ -265,9 +280,9 @@ public:
     float noise_estimate(int x, int y) const;
     // Writes the tile's pixels into `film`, each as the mean of its own samples (a pixel without any: the empty
     // values). Combined's alpha is coverage with a transparent background (RenderSettings::transparent_background)
-    // and 1 otherwise. With light passes, Emission gets the display blend's own part and the Direct and Indirect
-    // passes are divided by their Color (SampleRecord::light). The Cryptomatte passes go to the film's buffers of the
-    // tile's layout (Film::allocate_cryptomatte).
+    // and 1 otherwise, each less the held-out fraction (SampleRecord::holdout). With light passes, Emission gets the
+    // display blend's own part and the Direct and Indirect passes are divided by their Color (SampleRecord::light).
+    // The Cryptomatte passes go to the film's buffers of the tile's layout (Film::allocate_cryptomatte).
     void write_to(Film& film, bool transparent_background) const;
     // Pixels [x0, x1) x [y0, y1) of the film.
     int x0() const { return x0_; }

@@ -97,6 +97,10 @@ struct RenderSettings {
     bool cryptomatte_material = false;
     bool cryptomatte_asset = false;
     int cryptomatte_levels = 6;
+    // The Shadow Catcher pass is written (MeshDesc::shadow_catcher): as in Cycles, Combined then leaves shadow
+    // catchers transparent, their shadow being in the pass, with or without a transparent background; without the
+    // pass, Combined carries the shadow (as alpha, or over the world's colour).
+    bool shadow_catcher_pass = false;
 
     // Adaptive sampling (Cycles' Sampling > Noise Threshold): once a pixel's estimated noise is below the threshold
     // it receives no more samples, so the samples go where the image is still noisy (edges, soft shadows). The

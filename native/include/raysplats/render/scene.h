@@ -51,6 +51,19 @@ struct MeshDesc {
     Matrix4 object_to_world;
     // The object's pass index (Blender's Object.pass_index), which the Object Index pass shows.
     std::uint32_t pass_index = 0;
+    // Blender's Holdout (the object's, or its collection's in the view layer), as Cycles renders it
+    // (kernel/integrator/shade_surface.h): where a camera ray (or its continuation through transparency) meets the
+    // mesh, the path ends with zero colour and the transmittance left joins the pixel's held-out fraction, which
+    // Combined's alpha loses (SampleRecord::holdout). Other rays see the mesh as usual.
+    bool holdout = false;
+    // Blender's Shadow Catcher (Object.is_shadow_catcher): where a camera ray meets the mesh it shows only the
+    // shadows the lights cast on it, as Cycles' shadow catcher (kernel/film/read.h): with r the ratio of the lights'
+    // direct light at the point with visibility to that without (per channel; 1 where no light reaches it) and T the
+    // transmittance in front, the Shadow Catcher pass is 1 - T (1 - r) (SampleRecord::shadow_catcher); Combined
+    // leaves the mesh transparent when that pass is written (RenderSettings::shadow_catcher_pass), else gets alpha
+    // T (1 - mean(r)) and no colour with a transparent background, the world's colour times T mean(r) otherwise.
+    // Other rays see the mesh as usual.
+    bool shadow_catcher = false;
 };
 
 // The Embree device a Scene traces with. Embree picks its kernels (packet width, ray order in callbacks, the
@@ -134,6 +147,10 @@ public:
                                         std::string_view asset);
     void set_mesh_cryptomatte_names(std::uint32_t index, std::string_view object, std::string_view asset);
     void set_material_cryptomatte_name(std::uint32_t index, std::string_view material);
+    // Gaussian cloud `index` held out (Blender's Holdout; MeshDesc::holdout): along camera rays each of its Gaussians
+    // adds no colour and holds out its weight T_i a_i, the coverage it would have given the pixel. Off until set. No
+    // rebuild is needed.
+    void set_gaussian_holdout(std::uint32_t index, bool holdout);
     // Interactive scenes split Gaussian clouds into chunks (2^18 Gaussians), so that an edit rebuilds only the
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).
