@@ -96,6 +96,7 @@ void light_of(const SampleRecord& s, float* out) {
     const std::array<float, 3>& v = s.light[std::size_t(pass)];
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
 }
+
 void environment_of(const SampleRecord& s, float* out) {
     out[0] = s.environment[0], out[1] = s.environment[1], out[2] = s.environment[2];
 }
@@ -174,7 +175,6 @@ constexpr std::array<FilmChannelInfo, kFilmChannelCount> kChannels = {{
     {FilmChannel::Vector, "vector", "Vector", "XYZW", "VECTOR", SampleCombination::FirstSample, 0.0f,
      "Motion of the depth's point on the image to the previous frame (XY) and from the next (ZW), pixels, y up "
      "(first sample; 0: none, or no camera frame motion)", vector_of},
-}
     // Blender's Env pass (ViewLayer.use_pass_environment), Cycles' layout; averaged as Cycles averages it.
     {FilmChannel::Environment, "environment", "Env", "RGB", "COLOR", SampleCombination::Mean, 0.0f,
      "The world's colour where the camera ray escapes, times its transmittance (0 where it stops on a surface)",
