@@ -481,7 +481,7 @@ void PathIntegrator::catch_shadows(PathState& p, const Segment& seg, const Surfa
         const glm::vec3 light = bsdf.eval(wo, ls.wi, pdf) * std::max(glm::dot(ns, ls.wi), 0.0f) * ls.value;
         if (!(light.x > 0.0f || light.y > 0.0f || light.z > 0.0f)) continue;
         unshadowed += light;
-        shadowed += light * shadow_.shadow(p_out, ls.wi, ls.distance, false, c);
+        shadowed += light * shadow_.shadow(p_out, ls.wi, ls.distance, p.ray.time, false, c);
     }
     glm::vec3 ratio(1.0f);
     for (int k = 0; k < 3; ++k)
