@@ -17,20 +17,26 @@ RED, GREEN = (1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0)
 
 
 class RecordingRenderScene:
-    """Stands in for the native RenderScene: keeps the keyword arguments each add_material was given."""
+    """Stands in for the native RenderScene: keeps the keyword arguments each add_material was given (and the
+    Cryptomatte name the table gives each material)."""
 
     def __init__(self):
         self.materials = []
+        self.cryptomatte_names = {}
 
     def add_material(self, **kwargs):
         self.materials.append(kwargs)
         return len(self.materials) - 1
+
+    def set_material_cryptomatte_name(self, index, name):
+        self.cryptomatte_names[index] = name
 
 
 def renderer_input(material):
     """The add_material keyword arguments the renderer gets for `material` (through the engine's MaterialTable)."""
     scene = RecordingRenderScene()
     index = MaterialTable(scene, warn=print).index(material)
+    assert scene.cryptomatte_names[index] == material.name
     return scene.materials[index]
 
 
