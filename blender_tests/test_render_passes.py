@@ -47,6 +47,7 @@ class RenderPasses(unittest.TestCase):
         labels = {name: text for _, name, text in layout.log}
         self.assertEqual(labels["use_pass_object_index"], "Object Index")
         self.assertEqual(labels["use_pass_material_index"], "Material Index")
+        self.assertEqual(labels["use_pass_environment"], "Environment")
         self.assertEqual(labels["use_pass_mist"], "Mist")
 
     def test_the_mist_pass_alone_asks_the_core_for_mist(self):

@@ -20,9 +20,9 @@ _BLENDER_TOGGLES = {"Depth": "use_pass_z", "Normal": "use_pass_normal", "Mist": 
                     "GlossInd": "use_pass_glossy_indirect", "GlossCol": "use_pass_glossy_color",
                     "TransDir": "use_pass_transmission_direct", "TransInd": "use_pass_transmission_indirect",
                     "TransCol": "use_pass_transmission_color"}
-# The check boxes' labels where the pass's name is not one: Blender's own labels of use_pass_object_index and
-# use_pass_material_index (the passes were named "IndexOB" and "IndexMA" before 5.0).
-_LABELS = {"IndexOB": "Object Index", "IndexMA": "Material Index"}
+# The check boxes' labels where the pass's name is not one: Blender's own labels of use_pass_object_index,
+# use_pass_material_index, use_pass_environment (the passes were named "IndexOB", "IndexMA" and "Env" before 5.0).
+_LABELS = {"IndexOB": "Object Index", "IndexMA": "Material Index", "Env": "Environment"}
 # Passes whose check box is the Cycles add-on's (its view-layer property group, which every Blender here has), so that
 # one check box serves both engines; without Cycles, a RaySplats check box.
 _CYCLES_TOGGLES = {"Shadow Catcher": "use_pass_shadow_catcher"}
