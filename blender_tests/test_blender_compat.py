@@ -49,7 +49,7 @@ EXPECTED = {
     "IMAGE_FORMAT_HAS_MEDIA_TYPE": since((5, 0), True, False),
     "BPY_BMESH_POINTER_OFFSET": since((5, 2), 16, 24),
     "BPY_BMELEM_POINTER_OFFSET": since((5, 2), 24, 32),
-    "RENDER_PASS_BULK_SET": since((4, 2), True, False),
+    "RENDER_PASS_BUFFER_IS_FLAT": since((4, 2), True, False),
     "RENAMED_RENDER_PASSES": since((5, 0), {"IndexOB": "Object Index", "IndexMA": "Material Index",
                                             "Emit": "Emission", "DiffDir": "Diffuse Direct",
                                             "DiffInd": "Diffuse Indirect", "DiffCol": "Diffuse Color",
