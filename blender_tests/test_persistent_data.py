@@ -88,6 +88,12 @@ def kept_scenes():
     return sum(type(o) is sync.SceneSync for o in gc.get_objects())
 
 
+def kept_frame_buffer_bytes():
+    """Bytes of camera-ray splatting storage the kept scenes hold for their next frame."""
+    gc.collect()
+    return sum(o.render_scene.kept_frame_buffer_bytes for o in gc.get_objects() if type(o) is sync.SceneSync)
+
+
 class PersistentData(unittest.TestCase):
     def test_frames_keep_what_did_not_change_and_equal_fresh_renders(self):
         kept_images, kept_hows = render_sequence(True)
@@ -108,6 +114,8 @@ class PersistentData(unittest.TestCase):
         scene.render.use_persistent_data = True
         st.render_to_array("persistent_release_1")
         self.assertEqual(kept_scenes(), 1, "Persistent Data keeps the frame's scene")
+        # ... and its camera-ray splatting storage, which the next frame writes into instead of fresh memory.
+        self.assertGreater(kept_frame_buffer_bytes(), 0)
         scene.render.use_persistent_data = False
         st.render_to_array("persistent_release_2")
         self.assertEqual(kept_scenes(), 0, "without Persistent Data nothing is kept after the frame")

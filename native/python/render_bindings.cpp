@@ -251,6 +251,8 @@ struct RenderScene {
         shared.change()->set_interactive(interactive, chunk_size);
     }
 
+    void set_keep_frame_buffers(bool keep) { shared.change()->set_keep_frame_buffers(keep); }
+
     double build(const std::string& mode) {
         const raysplats::GaussianMode m = raysplats::gaussian_mode_names().value_of(mode);
         auto change = shared.change();
@@ -406,6 +408,10 @@ void register_render_bindings(py::module_& m) {
              "Combined's alpha loses their coverage")
         .def("set_interactive", &RenderScene::set_interactive, "interactive"_a, "chunk_size"_a = 1u << 18,
              "Splits Gaussian clouds into chunks so that edits rebuild only what they touch (the viewport)")
+        .def("set_keep_frame_buffers", &RenderScene::set_keep_frame_buffers, "keep"_a,
+             "Keeps the last frame's camera-ray splatting storage for the next frame (Persistent Data); off frees it")
+        .def_property_readonly("kept_frame_buffer_bytes",
+                               [](const RenderScene& s) { return s.shared.scene().kept_frame_buffer_bytes(); })
         .def("last_build", &RenderScene::last_build, "What the last build did: full, gaussian_chunks, meshes")
         .def_property_readonly("gaussian_count", [](const RenderScene& s) { return s.shared.scene().gaussian_count(); })
         .def_property_readonly("mesh_count", [](const RenderScene& s) { return s.shared.scene().mesh_count(); })

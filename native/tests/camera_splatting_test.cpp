@@ -396,3 +396,50 @@ TEST(CameraSplatting, CancelledBeforeStart) {
     EXPECT_EQ(film.stats.samples, 0);
     for (float alpha : film.alpha()) ASSERT_EQ(alpha, 0.0f);
 }
+
+// A scene that keeps its frame buffers (Scene::set_keep_frame_buffers, for Persistent Data) renders each frame bit for
+// bit as a scene that does not: a frame with fewer splats and tile entries after one with more (what the kept arrays
+// held beyond the new frame's lengths) and a different image size. It holds the storage between frames and frees it
+// when told to stop keeping it; a scene that does not keep it holds none.
+TEST(CameraSplatting, KeptFrameBuffersRenderAsAFreshScene) {
+    const GaussianCloud cloud = random_cloud(11, 600, 1.0f);
+    Scene kept, fresh;
+    for (Scene* scene : {&kept, &fresh}) {
+        scene->add_gaussians(cloud, Matrix4::translation(0.0f, 0.0f, -4.0f));
+        scene->set_world(black_world());
+    }
+    kept.set_keep_frame_buffers(true);
+    RenderSettings wide = splat_settings(true);
+    wide.width = 80;
+    wide.height = 60;
+    wide.samples = 2;
+    wide.jitter = true;
+    RenderSettings narrow = wide;
+    narrow.width = 48;
+    narrow.height = 40;
+    Camera near_view = pinhole(), far_view = pinhole();
+    near_view.camera_to_world = Matrix4::translation(0.8f, -0.4f, -2.0f);  // closer: fewer, bigger splats in view
+    far_view.camera_to_world = Matrix4::translation(0.0f, 0.0f, 6.0f);
+
+    const Film first = render(kept, pinhole(), wide);
+    ASSERT_TRUE(first.stats.camera_ray_splatting);
+    const std::size_t held = kept.kept_frame_buffer_bytes();
+    EXPECT_GT(held, first.stats.splat_bytes);  // (the splats and lists, and the working arrays)
+    EXPECT_EQ(first.rgba(), render(fresh, pinhole(), wide).rgba());
+    EXPECT_EQ(fresh.kept_frame_buffer_bytes(), 0u);
+
+    for (const auto& [camera, st] : {std::pair{near_view, narrow}, std::pair{far_view, wide}}) {
+        const Film again = render(kept, camera, st);
+        const Film reference = render(fresh, camera, st);
+        ASSERT_TRUE(again.stats.camera_ray_splatting);
+        EXPECT_EQ(again.stats.splats, reference.stats.splats);
+        EXPECT_EQ(again.stats.splat_tile_entries, reference.stats.splat_tile_entries);
+        for (const FilmChannel channel : {FilmChannel::Combined, FilmChannel::Depth, FilmChannel::Normal,
+                                          FilmChannel::Alpha, FilmChannel::GaussianCount})
+            EXPECT_EQ(again[channel], reference[channel]) << film_channels()[std::size_t(channel)].key;
+    }
+    EXPECT_LT(render(kept, near_view, narrow).stats.splats, first.stats.splats);
+    EXPECT_GE(kept.kept_frame_buffer_bytes(), held);  // (capacity only grows)
+    kept.set_keep_frame_buffers(false);
+    EXPECT_EQ(kept.kept_frame_buffer_bytes(), 0u);
+}

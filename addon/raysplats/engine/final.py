@@ -56,6 +56,8 @@ def _frame_scene(engine, depsgraph, clock):
     if scene_sync is None:
         scene_sync = sync.SceneSync(depsgraph, warn, clock=clock)
     if persistent:
+        # The next frame's camera-ray splatting writes into this frame's storage instead of fresh pages.
+        scene_sync.render_scene.set_keep_frame_buffers(True)
         engine.persistent_scene = (key, scene_sync)
     return scene_sync, how
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <string>
 
 #include <tbb/blocked_range.h>
@@ -57,6 +58,11 @@ void for_each_gaussian(const Scene::Impl& scene, const std::atomic<bool>* cancel
 CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSettings& settings, const Camera& camera,
                                        const std::atomic<bool>* cancel)
     : s_(scene) {
+    if (s_.keep_frame_buffers) {
+        const std::lock_guard<std::mutex> lock(s_.frame_buffers_mutex);
+        if (s_.frame_buffers) b_ = std::move(*s_.frame_buffers);
+        s_.frame_buffers.reset();
+    }
     const CameraRayGenerator rays(camera, settings.width, settings.height);
     proj_ = rays.pinhole_projection();
     const glm::mat3 camera_linear = linear_part(camera.camera_to_world);
@@ -77,11 +83,9 @@ CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSet
     if (total >= std::size_t(kNotVisible))
         throw Error("camera-ray splatting: " + std::to_string(total) + " Gaussians are more than it indexes (2^32 - 1)");
 
-    std::vector<std::uint64_t> keys;
-    Projections projected;
-    if (!sorted_keys(set_base, keys, projected, cancel) || is_cancelled(cancel)) return;
+    if (!sorted_keys(set_base, cancel) || is_cancelled(cancel)) return;
     // The camera ray's SH direction is camera -> centre (GaussianSet::display_color with the camera's origin).
-    gather(keys, projected, set_base, settings.blend_space == BlendSpace::Display, cancel);
+    gather(set_base, settings.blend_space == BlendSpace::Display, cancel);
     if (is_cancelled(cancel)) return;
 
     // Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
@@ -89,11 +93,19 @@ CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSet
     // tile meets a few percent, so splatting such a view cost several times the traced render. Small splats therefore
     // go into lists of the packets' own 4 px tiles; big ones stay in 16 px lists, where they cost 16x fewer entries
     // (4 px tiles alone multiply a big splat's entries, and the pre-pass with them). A packet merges its two lists.
-    std::vector<std::uint8_t> level(splats_.size());
-    for (std::size_t i = 0; i < splats_.size(); ++i) level[i] = splats_[i].half_extent <= kFineSplatMaxHalfExtent;
-    bin(coarse_, level, 0, cancel);
+    b_.level.resize(b_.splats.size());
+    for (std::size_t i = 0; i < b_.splats.size(); ++i) b_.level[i] = b_.splats[i].half_extent <= kFineSplatMaxHalfExtent;
+    bin(b_.coarse, 0, cancel);
     if (is_cancelled(cancel)) return;
-    bin(fine_, level, 1, cancel);
+    bin(b_.fine, 1, cancel);
+    if (!s_.keep_frame_buffers) b_.release_working_arrays();
+}
+
+CameraSplatPrepass::~CameraSplatPrepass() {
+    if (!s_.keep_frame_buffers) return;
+    const std::lock_guard<std::mutex> lock(s_.frame_buffers_mutex);
+    // (Of two pre-passes of one scene at once, the storage of the one that ends last is kept.)
+    s_.frame_buffers = std::make_unique<CameraSplatBuffers>(std::move(b_));
 }
 
 float CameraSplatPrepass::view_depth(const glm::vec3& world_point) const {
@@ -105,16 +117,18 @@ void CameraSplatPrepass::set_up_grids(const RenderSettings& settings) {
     const int margin = filter_margin(settings);
     grid_x0_ = region.x0 - margin;
     grid_y0_ = region.y0 - margin;
-    coarse_.size = kTileSize;
-    coarse_.nx = (region.width() + 2 * margin + kTileSize - 1) / kTileSize;
-    coarse_.ny = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
+    SplatTileLists& coarse = b_.coarse;
+    SplatTileLists& fine = b_.fine;
+    coarse.size = kTileSize;
+    coarse.nx = (region.width() + 2 * margin + kTileSize - 1) / kTileSize;
+    coarse.ny = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
     // The fine grid subdivides the coarse one exactly, so that a fine tile lies in one coarse tile.
     static_assert(kTileSize % kFineTileSize == 0, "fine tiles subdivide coarse tiles");
-    fine_.size = kFineTileSize;
-    fine_.nx = coarse_.nx * (kTileSize / kFineTileSize);
-    fine_.ny = coarse_.ny * (kTileSize / kFineTileSize);
-    grid_x1_ = float(grid_x0_ + coarse_.nx * kTileSize);
-    grid_y1_ = float(grid_y0_ + coarse_.ny * kTileSize);
+    fine.size = kFineTileSize;
+    fine.nx = coarse.nx * (kTileSize / kFineTileSize);
+    fine.ny = coarse.ny * (kTileSize / kFineTileSize);
+    grid_x1_ = float(grid_x0_ + coarse.nx * kTileSize);
+    grid_y1_ = float(grid_y0_ + coarse.ny * kTileSize);
     // A packet's samples lie within this of its pixels' squares (jitter: the pixel filter's reach from the centre).
     sample_pad_ = settings.jitter
                       ? std::max(0.0f, PixelFilterSampler::reach(settings.pixel_filter, settings.filter_width) - 0.5f)
@@ -177,11 +191,12 @@ bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, Pro
     return true;
 }
 
-bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
-                                     Projections& projected, const std::atomic<bool>* cancel) const {
+bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel) {
     // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
     // by scene order), sorted. The projections are kept for the gather, which would otherwise project every visible
     // Gaussian a second time (the projection is most of this pass).
+    std::vector<std::uint64_t>& keys = b_.keys;
+    SplatArray<ProjectedSplat>& projected = b_.projected;
     keys.assign(set_base.back(), kNotVisibleKey);
     projected.resize(set_base.back());
     for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
@@ -197,31 +212,35 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, s
     return true;
 }
 
-void CameraSplatPrepass::gather(std::vector<std::uint64_t>& keys, Projections& projected,
-                                const std::vector<std::size_t>& set_base, bool display,
+void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool display,
                                 const std::atomic<bool>* cancel) {
     // The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
     // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
-    std::vector<std::uint32_t> rank_of(set_base.back(), kNotVisible);
+    const std::vector<std::uint64_t>& keys = b_.keys;
+    const SplatArray<ProjectedSplat>& projected = b_.projected;
+    std::vector<std::uint32_t>& rank_of = b_.rank_of;
+    rank_of.assign(set_base.back(), kNotVisible);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
     });
-    splats_.resize(keys.size());
-    sources_.resize(keys.size());
-    keys.clear();
-    keys.shrink_to_fit();
+    b_.splats.resize(keys.size());
+    b_.sources.resize(keys.size());
     const glm::vec3 origin = camera_origin_;
     for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
         const std::uint32_t rank = rank_of[set_base[k] + j];
         if (rank == kNotVisible) return;
         const auto prim = std::uint32_t(j);
-        ProjectedSplat& splat = splats_[rank];
+        ProjectedSplat& splat = b_.splats[rank];
         splat = projected[set_base[k] + j];
         splat.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
-        sources_[rank] = SplatSource{set.index, prim};
+        b_.sources[rank] = SplatSource{set.index, prim};
     });
-    projected.clear();
-    projected.shrink_to_fit();
+    // (The samples do not read the working arrays: a scene that does not keep the storage frees these now.)
+    if (!s_.keep_frame_buffers) {
+        b_.keys = {};
+        b_.projected = {};
+        b_.rank_of = {};
+    }
 }
 
 // The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
@@ -264,8 +283,9 @@ void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const Projec
     }
 }
 
-void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
-                             const std::atomic<bool>* cancel) {
+void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const std::atomic<bool>* cancel) {
+    const SplatArray<ProjectedSplat>& splats = b_.splats;
+    const SplatArray<std::uint8_t>& level = b_.level;
     const std::size_t tile_count = std::size_t(lists.nx) * std::size_t(lists.ny);
     // A counting sort by tile that keeps the depth order: the splats in chunks of consecutive ranks, each chunk's
     // count per tile, every chunk's start in every list (the lists' offsets plus the counts of the chunks before it),
@@ -275,21 +295,23 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8
     // A cancel (the viewport stops its jobs on the UI thread before an edit reaches the scene) is seen within this
     // many splats of a chunk, since binning a scene of ten million splats takes the order of a second on one thread.
     constexpr std::size_t kCancelCheckInterval = 4096;
-    const std::size_t chunks = std::clamp<std::size_t>(splats_.size() / 256, 1, 16);
-    const std::size_t chunk_size = (splats_.size() + chunks - 1) / chunks;
-    std::vector<std::uint32_t> starts(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
+    const std::size_t chunks = std::clamp<std::size_t>(splats.size() / 256, 1, 16);
+    const std::size_t chunk_size = (splats.size() + chunks - 1) / chunks;
+    std::vector<std::uint32_t>& starts = b_.starts;
+    starts.assign(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
     // The tiles each splat reaches are found once: the count pass records them as bits over the splat's square of
     // tiles (row by row), and the fill pass reads the bits instead of testing the ellipse on every tile again (the
     // tests were most of the binning). Every fine splat's square fits in 64 tiles; a bigger square is tested again.
     constexpr int kMaskTiles = 64;
-    std::vector<std::uint64_t, DefaultInitAllocator<std::uint64_t>> reached(splats_.size());
+    SplatArray<std::uint64_t>& reached = b_.reached;
+    reached.resize(splats.size());
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* count = starts.data() + k * tile_count;
-        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
+        for (std::size_t i = k * chunk_size, end = std::min(splats.size(), i + chunk_size); i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;
             if (level[i] != which) continue;
             std::uint64_t bits = 0;
-            for_each_tile(lists, splats_[i], [&](std::size_t t, int bit) {
+            for_each_tile(lists, splats[i], [&](std::size_t t, int bit) {
                 ++count[t];
                 if (bit < kMaskTiles) bits |= std::uint64_t(1) << bit;
             });
@@ -310,13 +332,13 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8
     lists.entries.resize(lists.offsets[tile_count]);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* cursor = starts.data() + k * tile_count;
-        for (std::size_t i = k * chunk_size, end = std::min(splats_.size(), i + chunk_size); i < end; ++i) {
+        for (std::size_t i = k * chunk_size, end = std::min(splats.size(), i + chunk_size); i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;  // (the lists unfinished: nothing renders)
             if (level[i] != which) continue;
             auto add = [&](std::size_t t) { lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i); };
-            const TileSquare sq = tile_square(lists, splats_[i]);
+            const TileSquare sq = tile_square(lists, splats[i]);
             if (sq.count() > kMaskTiles) {
-                for_each_tile(lists, splats_[i], [&](std::size_t t, int) { add(t); });
+                for_each_tile(lists, splats[i], [&](std::size_t t, int) { add(t); });
                 continue;
             }
             for (std::uint64_t bits = reached[i]; bits != 0; bits &= bits - 1) {
@@ -327,11 +349,32 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, const std::vector<std::uint8
     });
 }
 
-std::size_t CameraSplatPrepass::memory_bytes() const {
-    std::size_t bytes = splats_.capacity() * sizeof(ProjectedSplat) + sources_.capacity() * sizeof(SplatSource);
-    for (const SplatTileLists* lists : {&coarse_, &fine_})
-        bytes += lists->entries.capacity() * sizeof(std::uint32_t) + lists->offsets.capacity() * sizeof(std::uint64_t);
-    return bytes;
+namespace {
+
+template <typename Array>
+std::size_t capacity_of(const Array& a) {
+    return a.capacity() * sizeof(typename Array::value_type);
+}
+
+}  // namespace
+
+std::size_t CameraSplatBuffers::frame_bytes() const {
+    return capacity_of(splats) + capacity_of(sources) + capacity_of(coarse.entries) + capacity_of(coarse.offsets) +
+           capacity_of(fine.entries) + capacity_of(fine.offsets);
+}
+
+std::size_t CameraSplatBuffers::capacity_bytes() const {
+    return frame_bytes() + capacity_of(keys) + capacity_of(projected) + capacity_of(rank_of) + capacity_of(level) +
+           capacity_of(starts) + capacity_of(reached);
+}
+
+void CameraSplatBuffers::release_working_arrays() {
+    keys = {};
+    projected = {};
+    rank_of = {};
+    level = {};
+    starts = {};
+    reached = {};
 }
 
 std::size_t SplatTileLists::tile_of(float x, float y, int x0, int y0) const {

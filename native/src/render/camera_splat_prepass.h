@@ -17,40 +17,12 @@
 
 #include <glm/glm.hpp>
 
-#include "raysplats/default_init_allocator.h"
+#include "camera_splat_buffers.h"
 #include "raysplats/render/camera.h"
 #include "raysplats/render/render_settings.h"
 #include "scene_impl.h"
 
 namespace raysplats {
-
-// One Gaussian as the camera sees it, in depth order: what every camera sample reads (48 bytes; the colour is here,
-// not with the rest of what only the samples it covers read, because a second array meant a second cache miss)...
-struct alignas(16) ProjectedSplat {
-    float u, v;            // image position of the centre, pixels (x right, y down from the top-left corner)
-    float conic[3];        // Sigma'^-1 = [[conic0, conic1], [conic1, conic2]], 1 / px^2
-    float opacity;
-    float depth;           // view depth of the centre (along the camera's -Z axis, camera-space units)
-    float half_extent;     // half side of its square, pixels: 3 sqrt(lambda_max(Sigma'))
-    glm::vec3 color;       // in the render's blend space
-    // Below this exponent alpha is under 1/255: ln(1/255 / opacity), less a margin, so that the test skips the exp of
-    // most samples it misses and never one whose alpha reaches 1/255 (which is then tested exactly).
-    float least_power;
-};
-// ... and what only a sample it stops or makes opaque, or meshes_shadow_gaussians, reads.
-struct SplatSource {
-    std::uint32_t set, prim;  // its GaussianSet and primitive (normal, centre)
-};
-
-// One level of tile lists: nx x ny square tiles of `size` pixels from the grids' corner; tile t's splats are
-// entries[offsets[t] .. offsets[t + 1]), indices into the splats, ascending (= front to back).
-struct SplatTileLists {
-    int size = 0, nx = 0, ny = 0;
-    std::vector<std::uint64_t> offsets;
-    std::vector<std::uint32_t> entries;
-    // The tile holding image position (x, y), clamped to the grid whose corner is (x0, y0).
-    std::size_t tile_of(float x, float y, int x0, int y0) const;
-};
 
 class CameraSplatPrepass {
 public:
@@ -64,19 +36,24 @@ public:
     // (examples/benchmark_camera_splatting.py: 4 and 8 render as fast, 4 with fewer entries; 16 is slower.)
     static constexpr float kFineSplatMaxHalfExtent = 4.0f;
 
+    // Gives the storage back to the scene when it keeps it for the next frame (Scene::set_keep_frame_buffers).
+    ~CameraSplatPrepass();
+    CameraSplatPrepass(const CameraSplatPrepass&) = delete;
+    CameraSplatPrepass& operator=(const CameraSplatPrepass&) = delete;
+
     // The visible Gaussians in (depth, set, prim) order, and their sources in the same order.
-    const std::vector<ProjectedSplat>& splats() const { return splats_; }
-    const std::vector<SplatSource>& sources() const { return sources_; }
+    const SplatArray<ProjectedSplat>& splats() const { return b_.splats; }
+    const SplatArray<SplatSource>& sources() const { return b_.sources; }
     // kTileSize tiles: the splats wider than kFineSplatMaxHalfExtent; kFineTileSize tiles, the packets' own: the
     // smaller ones.
-    const SplatTileLists& coarse() const { return coarse_; }
-    const SplatTileLists& fine() const { return fine_; }
+    const SplatTileLists& coarse() const { return b_.coarse; }
+    const SplatTileLists& fine() const { return b_.fine; }
     int grid_x0() const { return grid_x0_; }  // the tile grids' common corner, pixels
     int grid_y0() const { return grid_y0_; }
     // The view depth of a world point (along the camera's -Z axis).
     float view_depth(const glm::vec3& world_point) const;
     // Bytes held by the splats and tile lists.
-    std::size_t memory_bytes() const;
+    std::size_t memory_bytes() const { return b_.frame_bytes(); }
 
 private:
     // The projection and the tile grids of the render region.
@@ -85,13 +62,10 @@ private:
     bool project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const;
     // Every Gaussian projected once, by global index (set_base[k] + j: primitive j of set k; the culled ones' entries
     // unwritten), and the visible Gaussians' keys, depth above global index, sorted; false when cancelled.
-    using Projections = std::vector<ProjectedSplat, DefaultInitAllocator<ProjectedSplat>>;
-    bool sorted_keys(const std::vector<std::size_t>& set_base, std::vector<std::uint64_t>& keys,
-                     Projections& projected, const std::atomic<bool>* cancel) const;
+    bool sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel);
     // The splats and their sources in the keys' order, with their colours (`display`: in display values); frees
-    // the keys and the projections.
-    void gather(std::vector<std::uint64_t>& keys, Projections& projected, const std::vector<std::size_t>& set_base,
-                bool display, const std::atomic<bool>* cancel);
+    // the keys and the projections unless the scene keeps the storage.
+    void gather(const std::vector<std::size_t>& set_base, bool display, const std::atomic<bool>* cancel);
     // The tiles of `lists` a splat's square, widened by the samples' pad, covers: columns tx0..tx1, rows ty0..ty1.
     struct TileSquare {
         int tx0, ty0, tx1, ty1;
@@ -104,8 +78,7 @@ private:
     template <typename Visit>
     void for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const;
     // Bins the splats of `level` into `lists` (sized already): only tiles the splat can reach alpha 1/255 in.
-    void bin(SplatTileLists& lists, const std::vector<std::uint8_t>& level, std::uint8_t which,
-             const std::atomic<bool>* cancel);
+    void bin(SplatTileLists& lists, std::uint8_t which, const std::atomic<bool>* cancel);
 
     const Scene::Impl& s_;
     // World to camera space (the camera's inverse matrix: camera looks down -Z) and the projection to pixels:
@@ -118,10 +91,7 @@ private:
     int grid_x0_ = 0, grid_y0_ = 0;         // the tile grids' common corner, pixels
     float grid_x1_ = 0.0f, grid_y1_ = 0.0f; // and their far corner
     float sample_pad_ = 0.0f;               // how far outside its pixel's square a sample can fall, pixels
-    std::vector<ProjectedSplat> splats_;
-    std::vector<SplatSource> sources_;
-    SplatTileLists coarse_;
-    SplatTileLists fine_;
+    CameraSplatBuffers b_;  // taken from the scene when it keeps them, else empty
 };
 
 }  // namespace raysplats

@@ -134,7 +134,7 @@ inline bool CameraSplatting::blend(std::uint32_t index, float power, const Ray& 
 inline void CameraSplatting::composite(std::size_t fine_tile, std::uint32_t lanes, const Ray* rays, const float* xs,
                                        const float* ys, const float* mesh_depth, const float* view_rates,
                                        Sampler* rngs, Segment* segs, Counters& c) const {
-    const std::vector<ProjectedSplat>& splats = prepass_.splats();
+    const SplatArray<ProjectedSplat>& splats = prepass_.splats();
     const SplatTileLists &coarse_lists = prepass_.coarse(), &fine_lists = prepass_.fine();
     // The box of the packet's sample positions: a splat whose square misses it is skipped with four comparisons
     // instead of one per lane. A 4 x 4 packet covers a sixteenth of a 16 px tile, and a zoomed-out view of a big scene

@@ -531,6 +531,18 @@ void Scene::set_interactive(bool interactive, std::uint32_t chunk_size) {
     impl_->interactive_chunk_size = chunk_size;
 }
 
+void Scene::set_keep_frame_buffers(bool keep) {
+    impl_->keep_frame_buffers = keep;
+    if (keep) return;
+    const std::lock_guard<std::mutex> lock(impl_->frame_buffers_mutex);
+    impl_->frame_buffers.reset();
+}
+
+std::size_t Scene::kept_frame_buffer_bytes() const {
+    const std::lock_guard<std::mutex> lock(impl_->frame_buffers_mutex);
+    return impl_->frame_buffers ? impl_->frame_buffers->capacity_bytes() : 0;
+}
+
 Scene::BuildReport Scene::last_build() const { return impl_->report; }
 
 std::size_t Scene::gaussian_count() const {

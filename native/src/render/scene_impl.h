@@ -3,12 +3,14 @@
 
 #include <algorithm>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
 #include <embree3/rtcore.h>
 #include <glm/glm.hpp>
 
+#include "camera_splat_buffers.h"
 #include "gaussian_primitives.h"
 #include "raysplats/render/scene.h"
 
@@ -70,6 +72,11 @@ struct Scene::Impl {
     bool built = false;
     GaussianMode built_mode = GaussianMode::Flat;
     std::vector<TopGeometry> top;  // by top-level geomID
+    // Camera-ray splatting's storage, kept from one frame's pre-pass for the next when keep_frame_buffers is set
+    // (Scene::set_keep_frame_buffers); a pre-pass takes it while it renders and gives it back after.
+    bool keep_frame_buffers = false;
+    mutable std::mutex frame_buffers_mutex;
+    mutable std::unique_ptr<CameraSplatBuffers> frame_buffers;
 
     // Whether some mesh or Gaussian cloud has motion (Scene::has_motion).
     bool has_motion() const;

@@ -155,6 +155,14 @@ public:
     // chunks it touched, at a small cost in render speed; others keep each cloud whole (the default, for final
     // renders).
     void set_interactive(bool interactive, std::uint32_t chunk_size = 1u << 18);
+    // Whether the scene keeps the storage of its last frame's camera-ray splatting (the splats in depth order, their
+    // tile lists and the pre-pass's working arrays: about 150 bytes per Gaussian in view, plus 4 per tile entry) for
+    // the next frame, which then writes into memory already mapped instead of faulting in fresh pages. For a scene
+    // rendered frame after frame (Persistent Data); off by default, and turning it off frees what is kept. The
+    // images are the same either way.
+    void set_keep_frame_buffers(bool keep);
+    // Bytes kept that way (0 when nothing is).
+    std::size_t kept_frame_buffer_bytes() const;
 
     // What the last build() that had something to do did (a build of an up-to-date scene leaves it).
     struct BuildReport {
