@@ -296,7 +296,20 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
     // many splats of a chunk, since binning a scene of ten million splats takes the order of a second on one thread.
     constexpr std::size_t kCancelCheckInterval = 4096;
     const std::size_t chunks = std::clamp<std::size_t>(splats.size() / 256, 1, 16);
-    const std::size_t chunk_size = (splats.size() + chunks - 1) / chunks;
+    // Chunk k is ranks [bounds[k], bounds[k + 1]), holding an equal share of this level's splats: the levels are not
+    // spread evenly over the depth order (a far view's small splats are the back of it), and chunks of equal rank
+    // ranges left one thread binning most of the fine level.
+    std::vector<std::size_t> bounds(chunks + 1, splats.size());
+    {
+        const std::size_t total = std::size_t(std::count(level.begin(), level.end(), which));
+        bounds[0] = 0;
+        std::size_t seen = 0, k = 1;  // (seen: this level's splats before rank i)
+        for (std::size_t i = 0; i < splats.size() && k < chunks; ++i) {
+            if (level[i] != which) continue;
+            while (k < chunks && k * total / chunks <= seen) bounds[k++] = i;
+            ++seen;
+        }
+    }
     std::vector<std::uint32_t>& starts = b_.starts;
     starts.assign(chunks * tile_count, 0);  // chunk k's count, then its cursor, in tile t: [k * tile_count + t]
     // The tiles each splat reaches are found once: the count pass records them as bits over the splat's square of
@@ -307,7 +320,7 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
     reached.resize(splats.size());
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* count = starts.data() + k * tile_count;
-        for (std::size_t i = k * chunk_size, end = std::min(splats.size(), i + chunk_size); i < end; ++i) {
+        for (std::size_t i = bounds[k], end = bounds[k + 1]; i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;
             if (level[i] != which) continue;
             std::uint64_t bits = 0;
@@ -332,7 +345,7 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
     lists.entries.resize(lists.offsets[tile_count]);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* cursor = starts.data() + k * tile_count;
-        for (std::size_t i = k * chunk_size, end = std::min(splats.size(), i + chunk_size); i < end; ++i) {
+        for (std::size_t i = bounds[k], end = bounds[k + 1]; i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;  // (the lists unfinished: nothing renders)
             if (level[i] != which) continue;
             auto add = [&](std::size_t t) { lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i); };
