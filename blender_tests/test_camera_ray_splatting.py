@@ -97,6 +97,8 @@ class CameraRaySplatting(unittest.TestCase):
             viewport._start_job(engine, state, self.scene, camera, 64, 48, 1, seed_offset=1)
             state.job.wait(60.0)
         self.assertEqual(started, [False, True])
+        # The viewport's scene keeps the splatted render's storage for its next render.
+        self.assertGreater(state.sync.render_scene.kept_frame_buffer_bytes, 0)
 
     def test_a_relit_object_keeps_camera_rays_traced(self):
         self.scene.raysplats.camera_ray_splatting = True

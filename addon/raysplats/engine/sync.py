@@ -209,6 +209,9 @@ class SceneSync:
         self.render_scene = self.core.RenderScene()
         if interactive:
             self.render_scene.set_interactive(True)
+            # The viewport renders the scene again after every view change and edit: its camera-ray splatting
+            # writes into the last render's storage instead of fresh pages.
+            self.render_scene.set_keep_frame_buffers(True)
         self.stats = SceneStats()
         self._warn = warn
         self._seen_warnings = set()
