@@ -152,9 +152,7 @@ bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, Pro
         // A flat primitive's third row is its unit normal: its column of L is the unit axis, scaled here by the
         // Gaussian's smallest scale (as make_primitive clamps it), so that the footprint is the 3D Gaussian's, as
         // a viewer draws it, in either mode (the mode is the geometry rays trace).
-        const float* s = &set.cloud->scales[3 * std::size_t(set.cloud_index[prim])];
-        const float largest = std::max(s[0], std::max(s[1], s[2]));
-        l[2] *= std::max(std::min(s[0], std::min(s[1], s[2])), 1e-6f * largest);
+        l[2] *= g.thin_scale;
     }
     // The Jacobian of (X, Y, Z) -> (cx + fx X / z, cy - fy Y / z), z = -Z, at the centre (x/z, y/z clamped
     // about the frustum's centre, forward.cu computeCov2D).

@@ -86,7 +86,8 @@ GaussianPrimitive make_primitive(const GaussianCloud& c, std::size_t i, bool fla
     g.row1 = axis[order[1]] * inv_scale(order[1]);
     g.row2 = flat ? axis[order[2]] : axis[order[2]] * inv_scale(order[2]);
     g.cloud_index = std::uint32_t(i);
-    g.pad1 = g.pad2 = 0.0f;
+    g.thin_scale = std::max(std::min(s[0], std::min(s[1], s[2])), 1e-6f * std::max(s[0], std::max(s[1], s[2])));
+    g.pad2 = 0.0f;
     return g;
 }
 

@@ -33,7 +33,10 @@ struct alignas(16) GaussianPrimitive {
     glm::vec3 row0;
     std::uint32_t cloud_index;  // the Gaussian's index in its cloud: keys the stochastic draw (independent of order)
     glm::vec3 row1;
-    float pad1;
+    // The Gaussian's smallest scale, at least 1e-6 of its largest: the length of the axis a flat primitive's row 2
+    // leaves out, which camera-ray splatting's footprint puts back (kept here, in the primitives' order, so that the
+    // projection does not read the cloud's scales in its own order).
+    float thin_scale;
     glm::vec3 row2;
     float pad2;
 };
