@@ -156,10 +156,10 @@ public:
     // renders).
     void set_interactive(bool interactive, std::uint32_t chunk_size = 1u << 18);
     // Whether the scene keeps the storage of its last frame's camera-ray splatting (the splats in depth order, their
-    // tile lists and the pre-pass's working arrays: about 150 bytes per Gaussian in view, plus 4 per tile entry) for
-    // the next frame, which then writes into memory already mapped instead of faulting in fresh pages. For a scene
-    // rendered frame after frame (Persistent Data); off by default, and turning it off frees what is kept. The
-    // images are the same either way.
+    // tile lists and the pre-pass's working arrays: 60 bytes per Gaussian of the scene, 65 more per Gaussian in view
+    // and 4 per tile entry) for the next frame, which then writes into memory already mapped instead of faulting in
+    // fresh pages. For a scene rendered frame after frame (Persistent Data, the viewport); off by default, and turning
+    // it off frees what is kept. The images are the same either way.
     void set_keep_frame_buffers(bool keep);
     // Bytes kept that way (0 when nothing is).
     std::size_t kept_frame_buffer_bytes() const;
