@@ -34,9 +34,9 @@ void add_to_lobes(std::array<glm::vec3, kLightPassCount>& passes, const glm::vec
 inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const {
     const MeshRecord& m = *s_.meshes[s_.top[seg.top_geom].index];
     const std::uint32_t* idx = m.desc.indices + 3 * std::size_t(seg.prim);
-    const float* vd = m.vertex_data();
-    auto vtx = [&](std::uint32_t i) { return glm::vec3(vd[3 * i], vd[3 * i + 1], vd[3 * i + 2]); };
-    const glm::vec3 v0 = vtx(idx[0]), v1 = vtx(idx[1]), v2 = vtx(idx[2]);
+    // (With deformation, the triangle where the ray's time puts it: the geometric normal turns with it.)
+    const glm::vec3 v0 = m.vertex_at(idx[0], ray.time), v1 = m.vertex_at(idx[1], ray.time),
+                    v2 = m.vertex_at(idx[2], ray.time);
     Surface sf;
     sf.p = ray.o + seg.t * ray.d;
     const glm::mat3 normal_matrix = m.normal_matrix_at(ray.time);
