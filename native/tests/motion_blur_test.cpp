@@ -423,10 +423,11 @@ TEST(RenderGaussianDeformation, DeformedGaussiansSmearBySpeedTimesShutter) {
 
 // A ray of time t sees a Gaussian interpolated between the steps around t: with the shutter open only around t (a
 // spike 1/100 of the shutter wide), a small Gaussian's image centre is where the interpolated centre projects
-// (0.3 px), for steps at -D/2, +D/2, 0; and an elongated Gaussian turned by 90 degrees between two steps is seen at
+// (0.3 px), for steps at -D/2, +D/2, 0; and an elongated Gaussian turned by 90 degrees in three steps is seen at
 // t = 1/2 turned by 45 degrees with its shape kept (normalised quaternion interpolation): the image's covariance has
 // its principal axis at 45 degrees (|xy| = (major - minor) / 2 within 5 %) and the same major and minor variances as at t = 0
-// (5 %), which it would not if the bounds at the steps did not hold it in between (a clipped image is narrower).
+// (5 %), which it would not if the bounds at the steps did not hold it in between (a clipped image is narrower); the
+// same Gaussian given with its axes named otherwise at one step stays as it is.
 TEST(RenderGaussianDeformation, GaussiansAreWhereTheRaysTimePutsThem) {
     GaussianCloud cloud;
     cloud.sh_degree = 0;
@@ -459,12 +460,15 @@ TEST(RenderGaussianDeformation, GaussiansAreWhereTheRaysTimePutsThem) {
     long_one.sh_degree = 0;
     const float ls[3] = {float(6.0 / kPixelsPerUnit), float(1.5 / kPixelsPerUnit), 0.2f * sigma};
     add_gaussian(long_one, p, q, ls, 0.9f, rgb);
-    GaussianCloud turned = long_one;
-    const float half = std::sqrt(0.5f);
-    turned.rotations = {half, 0.0f, 0.0f, half};  // 90 degrees about Z
+    // Four steps 30 degrees apart about Z (a turn of more than 45 degrees between two steps would be taken the
+    // short way, by the other axis: see the renamed axes below).
     CloudSteps turn;
-    turn.add(long_one);
-    turn.add(turned);
+    GaussianCloud turned = long_one;
+    for (int k = 0; k < 4; ++k) {
+        const float angle = float(k) * float(M_PI) / 6.0f;
+        turned.rotations = {std::cos(0.5f * angle), 0.0f, 0.0f, std::sin(0.5f * angle)};
+        turn.add(turned);
+    }
     for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric}) {
         Scene turning;
         turning.set_world(black_world());
@@ -492,6 +496,17 @@ TEST(RenderGaussianDeformation, GaussiansAreWhereTheRaysTimePutsThem) {
         EXPECT_NEAR(std::abs(middle[2]), 0.5 * (a[0] - a[1]), 0.05 * 0.5 * (a[0] - a[1])) << "turned by 45 degrees";
         EXPECT_NEAR(b[0], a[0], 0.05 * a[0]);
         EXPECT_NEAR(b[1], a[1], 0.05 * a[1]);
+        // The same Gaussian given at step 1 with its axes named otherwise (turned by 90 degrees, its X and Y scales
+        // swapped): it does not turn or change in between (the steps' axes are aligned).
+        GaussianCloud renamed = turned;
+        std::swap(renamed.scales[0], renamed.scales[1]);
+        CloudSteps same;
+        same.add(long_one);
+        same.add(renamed);
+        same.give(turning, 0, long_one.size());
+        const std::array<double, 3> kept = image_covariance(render(turning, c, st));
+        std::printf("renamed axes: covariance at 1/2 (%.2f %.2f %.2f) px^2\n", kept[0], kept[1], kept[2]);
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(kept[k], start[k], 0.05 * start[0]) << k;
     }
 }
 
@@ -564,6 +579,46 @@ TEST(RenderGaussianDeformation, BoundsAtTheStepsHoldTheGaussiansBetween) {
         }
         EXPECT_GT(checked, 1000);
     }
+}
+
+// Steps that move every Gaussian alike render what the same motion of their cloud's matrix renders (many overlapping
+// flat and volumetric Gaussians, sorted and stochastic; a ray of each time sees the same Gaussians, so only
+// rounding differs: mean absolute difference under 0.1 % of the mean pixel): no Gaussian is lost to its bounds or
+// to the group it is tested in, and the shutter times are drawn alike.
+TEST(RenderGaussianDeformation, MovingEveryGaussianAlikeRendersAsMovingTheCloud) {
+    const GaussianCloud cloud = random_cloud(3, 2000, 0.8f);
+    const float travel = 0.4f;
+    CloudSteps steps;
+    for (float dx : {-0.5f * travel, 0.0f, 0.5f * travel}) steps.add(shifted(cloud, dx));
+    std::vector<Matrix4> motion = sliding(travel);
+    for (Matrix4& m : motion) m = Matrix4::translation(0.0f, 0.0f, -3.0f) * m;
+    Camera c = test_camera();
+    c.focal_length_mm = 35.0f;
+    for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric})
+        for (bool stochastic : {false, true}) {
+            RenderSettings st;
+            st.width = st.height = 48;
+            st.samples = 16;
+            st.gaussian_mode = mode;
+            if (stochastic) st.compositing = Compositing::Stochastic;
+            Scene moved, deformed;
+            for (Scene* scene : {&moved, &deformed}) {
+                scene->set_world(black_world());
+                scene->add_gaussians(cloud, Matrix4::translation(0.0f, 0.0f, -3.0f));
+            }
+            moved.set_gaussians_motion(0, motion);
+            steps.give(deformed, 0, cloud.size());
+            const Film a = render(moved, c, st), b = render(deformed, c, st);
+            double diff = 0.0, total = 0.0;
+            for (std::size_t i = 0; i < a.rgba().size(); ++i) {
+                diff += std::abs(double(b.rgba()[i]) - a.rgba()[i]);
+                total += a.rgba()[i];
+            }
+            std::printf("%s %s: mean |difference| %.4f %% of the mean\n",
+                        mode == GaussianMode::Flat ? "flat" : "volumetric", stochastic ? "stochastic" : "sorted",
+                        100.0 * diff / total);
+            EXPECT_LT(diff, 1e-3 * total);
+        }
 }
 
 // Gaussian deformation: one frame per seed, the still film without it (and after update_gaussians drops it), and

@@ -258,7 +258,8 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
 }
 
 // The lanes at each step are the frame's groups' Gaussians (the same membership, so the callbacks keep every other
-// field of the group), with their rows in the frame's order of scales at every step, so that a row stays one axis.
+// field of the group), with their rows in the first step's order of scales at every step (Scene::
+// set_gaussians_deformation aligned the steps' axes), so that a row stays one axis.
 // Bounds: Embree takes a user primitive's bounds at each time step and assumes them linearly interpolated in
 // between (rtcSetGeometryTimeStepCount; the bounds callback's timeStep), so they must contain the Gaussian at every
 // time of the segment, not only at the steps. A lane's box at step k is its centre there plus, on every axis, its
@@ -277,8 +278,9 @@ void GaussianSet::build_deformation(GaussianChunk& chunk) const {
         float reach[kGroupWidth] = {};
         for (std::uint32_t lane = 0; lane < g.count; ++lane) {
             const std::size_t i = g.cloud_index[lane];
+            // (The steps' axes are aligned with one another, not with the cloud's: their own order of scales.)
             int order[3];
-            order_by_scale(&cloud->scales[3 * i], order);
+            order_by_scale(&deformation.scales[3 * i], order);
             float largest = 0.0f;
             for (std::size_t k = 0; k < steps; ++k) {
                 DeformedLanes& d = chunk.deformed[k * groups + gi];
@@ -313,7 +315,7 @@ void GaussianSet::build_deformation(GaussianChunk& chunk) const {
 // the steps it is exact, between them it turns at nearly constant speed over the small angles of one step, and the
 // rows rebuilt from it stay orthogonal, so the Gaussian keeps its shape. (Interpolating the rows themselves would
 // shorten a turning Gaussian's inverse-scale rows, that is grow the Gaussian, beyond its bounds.) The rows are
-// made as make_primitive makes them, in the frame's order of scales.
+// made as make_primitive makes them, in the first step's order of scales.
 void GaussianSet::deformed_group(const GaussianChunk& chunk, std::uint32_t group, float time,
                                  GaussianGroup& out) const {
     const GaussianGroup& g = chunk.groups[group];

@@ -69,7 +69,7 @@ struct alignas(32) DeformedLanes {
     float center[3][kGroupWidth];       // [axis][lane]
     float rotation[4][kGroupWidth];     // unit quaternion (w, x, y, z), sign-aligned with the previous step's
     float scale[3][kGroupWidth];        // the standard deviation along the axis of row r of the primitive
-    std::uint8_t axis[3][kGroupWidth];  // which column of the rotation row r takes (the frame's order of scales)
+    std::uint8_t axis[3][kGroupWidth];  // which column of the rotation row r takes (the first step's order of scales)
 };
 
 // One Gaussian cloud in the scene. Primitives are in the cloud's own (object) frame and split into chunks of
@@ -97,7 +97,8 @@ struct GaussianSet {
     Matrix4 object_to_world;
     std::vector<Matrix4> motion;          // Scene::set_gaussians_motion's matrices (empty: none)
     // Scene::set_gaussians_deformation's Gaussians (in cloud order) at `steps` equally spaced times across the
-    // shutter, step after step: centres, unit quaternions (each sign-aligned with the previous step's) and scales.
+    // shutter, step after step: centres, unit quaternions and scales, each step's axes in the order and signs nearest
+    // the previous step's (one Gaussian may be given with its axes named differently at two steps).
     struct Deformation {
         std::size_t steps = 0;  // 0: none
         std::vector<float> positions, rotations, scales;

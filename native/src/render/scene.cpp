@@ -10,6 +10,7 @@
 #include <iterator>
 #include <string>
 
+#include "core/linear_algebra.h"
 #include "gaussian_callbacks.h"
 #include "microfacet_tables.h"
 #include "raysplats/errors.h"
@@ -355,6 +356,43 @@ void Scene::set_mesh_deformation(std::uint32_t index, const float* step_vertices
     impl_->built = false;
 }
 
+namespace {
+
+// One Gaussian is the same for any order and signs of its axes (its scales taken in that order), and recovery may
+// name a Gaussian's axes differently at two steps (exactly at its imported polygon, by moments elsewhere). Rewrites
+// rotation `q` (unit, w x y z) and `scales` to the order and signs of the axes nearest those of the previous step's
+// rotation `previous`, as a proper rotation, so that interpolating between the steps turns each axis the short way
+// and keeps each scale on its axis.
+void align_axes(const float* previous, glm::vec4& q, float* scales) {
+    const la::Mat3 before = la::quaternion_to_matrix(previous[0], previous[1], previous[2], previous[3]);
+    const la::Mat3 now = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
+    static const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    int best = 0;
+    double best_match = -1.0;
+    for (int o = 0; o < 6; ++o) {
+        double match = 0.0;
+        for (int j = 0; j < 3; ++j) match += std::abs(la::dot(before.column(j), now.column(orders[o][j])));
+        if (match > best_match) best_match = match, best = o;
+    }
+    la::Mat3 aligned;
+    int weakest = 0;
+    double weakest_dot = 2.0;
+    for (int j = 0; j < 3; ++j) {
+        const la::Vec3 axis = now.column(orders[best][j]);
+        const double along = la::dot(before.column(j), axis);
+        aligned.set_column(j, along < 0.0 ? -axis : axis);
+        if (std::abs(along) < weakest_dot) weakest_dot = std::abs(along), weakest = j;
+    }
+    if (la::determinant(aligned) < 0.0) aligned.set_column(weakest, -aligned.column(weakest));
+    double aligned_q[4];
+    la::matrix_to_quaternion(aligned, aligned_q);
+    q = glm::vec4(float(aligned_q[0]), float(aligned_q[1]), float(aligned_q[2]), float(aligned_q[3]));
+    const float s[3] = {scales[0], scales[1], scales[2]};
+    for (int j = 0; j < 3; ++j) scales[j] = s[orders[best][j]];
+}
+
+}  // namespace
+
 void Scene::set_gaussians_deformation(std::uint32_t index, std::size_t step_count, const float* positions,
                                       const float* rotations, const float* scales, std::size_t gaussian_count) {
     if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
@@ -391,10 +429,11 @@ void Scene::set_gaussians_deformation(std::uint32_t index, std::size_t step_coun
                 const float length = glm::length(q);
                 if (!std::isfinite(length) || length == 0.0f) fail("has a zero, NaN or Inf rotation");
                 q /= length;
-                // q and -q are one rotation: the one nearer the previous step's, so that interpolating between
-                // them turns the short way (GaussianSet::deformed_group).
                 if (k > 0) {
                     const float* p = &d.rotations[4 * (at_step - n)];
+                    align_axes(p, q, &d.scales[3 * at_step]);
+                    // q and -q are one rotation: the one nearer the previous step's, so that interpolating between
+                    // them turns the short way (GaussianSet::deformed_group).
                     if (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3] < 0.0f) q = -q;
                 }
                 for (int a = 0; a < 4; ++a) d.rotations[4 * at_step + a] = q[a];
