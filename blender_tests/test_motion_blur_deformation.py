@@ -8,8 +8,8 @@
 #   absolute difference of the images within the tolerance below; with Deformation off RaySplats differs from
 #   Cycles' blurred image by far more;
 # - what is read: the vertices of a deforming mesh at each step (the frame put back afterwards), nothing for a still
-#   mesh or with Deformation off, and a mesh whose vertex count changes during the shutter is left sharp with a
-#   warning, as Cycles does.
+#   mesh or with Deformation off, a textured mesh's steps mapped to its corner vertices as its frame's are, and a
+#   mesh whose vertex count changes during the shutter is left sharp with a warning, as Cycles does.
 import unittest
 from types import SimpleNamespace
 
@@ -189,6 +189,30 @@ class Reading(unittest.TestCase):
         bar.cycles.use_deform_motion = False
         self.assertEqual(self.shutter_motion(scene).deformation, {})
         self.assertEqual(motion.warnings, [])
+
+    def test_textured_mesh_steps_follow_its_corner_vertices(self):
+        # A textured mesh is given to the core with one vertex per triangle corner (its UVs): its steps are mapped
+        # the same way, so that the middle step (the frame) is exactly the frame's vertices.
+        scene = ortho_scene(1)
+        scene.render.use_motion_blur = True
+        bar = shape_key_bar()
+        bar.data.uv_layers.new(name="UVMap")
+        material = bpy.data.materials.new("Textured")
+        material.use_nodes = True
+        texture = material.node_tree.nodes.new("ShaderNodeTexImage")
+        texture.image = bpy.data.images.new("Texture", 4, 4)
+        material.node_tree.links.new(texture.outputs["Color"],
+                                     material.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+        bar.data.materials[0] = material
+        motion = self.shutter_motion(scene)
+        scene_sync = sync.SceneSync(bpy.context.evaluated_depsgraph_get())
+        index, arrays = scene_sync.meshes[bar.as_pointer()]
+        self.assertIsNotNone(scene_sync.vertex_maps[index][1], "one vertex per corner")
+        steps = scene_sync._mesh_steps(index, motion.deformation[motion_blur.instance_key(
+            SimpleNamespace(object=bar, is_instance=False))])
+        self.assertEqual(steps.shape, (3, 6, 3))
+        np.testing.assert_array_equal(steps[1], arrays[0])
+        np.testing.assert_allclose(steps[2] - steps[0], np.tile([SHUTTER * SPEED, 0.0, 0.0], (6, 1)), atol=1e-6)
 
     def test_changed_vertex_count_is_left_sharp_with_a_warning(self):
         scene = ortho_scene(1)

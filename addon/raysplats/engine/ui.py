@@ -168,8 +168,9 @@ class RAYSPLATS_RENDER_PT_motion_blur_curve(RaySplatsPanel, bpy.types.Panel):
 
 class RAYSPLATS_OBJECT_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
     """An object's motion blur switch, steps and Deformation switch (Object.cycles, the Cycles add-on's, which the
-    engine reads as Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation blurs meshes
-    whose vertices move during the shutter; splat objects keep their object's motion only (docs)."""
+    engine reads as Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation blurs meshes and
+    polygon splat objects whose vertices move during the shutter; point splat objects keep their object's motion only
+    (docs)."""
     bl_label = "Motion Blur"
     bl_context = "object"
     bl_options = {"DEFAULT_CLOSED"}
