@@ -9,7 +9,9 @@
 #   Cycles' blurred image by far more;
 # - what is read: the vertices of a deforming mesh at each step (the frame put back afterwards), nothing for a still
 #   mesh or with Deformation off, a textured mesh's steps mapped to its corner vertices as its frame's are, and a
-#   mesh whose vertex count changes during the shutter is left sharp with a warning, as Cycles does.
+#   mesh whose vertex count changes during the shutter is left sharp with a warning, as Cycles does;
+# - the Vector pass (motion blur off): a plane whose vertices a shape key moves reads its vertices' motion on the
+#   image (within 1e-3 px), and only its object's with Deformation off.
 import unittest
 from types import SimpleNamespace
 
@@ -19,6 +21,7 @@ import numpy as np
 import splat_testing as st
 from raysplats.engine import motion_blur, sync, ui
 from test_motion_blur import CYCLES_SAMPLES, CYCLES_TOLERANCE, PIXELS_PER_UNIT, SPEED, ortho_scene, spread_x
+from test_vector_pass import base_scene, vector_and_position
 
 SHUTTER = 0.5
 
@@ -158,6 +161,35 @@ class DeformedSplats(unittest.TestCase):
         scene.render.use_motion_blur = False
         np.testing.assert_array_equal(sharp, st.render_to_array("deform_splats_blur_off"))
         self.assertFalse(np.array_equal(sharp, blurred))
+
+
+class VectorPass(unittest.TestCase):
+    def test_deforming_mesh_gives_its_vertices_motion(self):
+        # Motion blur off, View Layer > Passes > Vector: a plane whose vertices a shape key moves 30 px a frame along
+        # +X, under an orthographic camera moving 15 px a frame along +Y, reads (-30, +15, -30, +15) where it is seen
+        # (1e-3 px); with Deformation off, the camera's motion alone (0, +15, 0, +15).
+        scene = base_scene("ORTHO")
+        bpy.ops.mesh.primitive_plane_add(size=1.0)
+        plane = bpy.context.object
+        plane.data.materials.append(st.emission_material("Plane"))
+        plane.shape_key_add(name="Basis")
+        key = plane.shape_key_add(name="Right")
+        for point in key.data:
+            point.co.x += 1.0
+        key.slider_min, key.slider_max = -10.0, 10.0
+        st.drive(plane.data.shape_keys, 'key_blocks["Right"].value', -1, "(frame - 5) * 1.0")
+        st.drive(scene.camera, "location", 1, "(frame - 5) * 0.5")
+        scene.frame_set(5)
+        for deform, expected in ((True, (-30.0, 15.0, -30.0, 15.0)), (False, (0.0, 15.0, 0.0, 15.0))):
+            plane.cycles.use_deform_motion = deform
+            vector, position = vector_and_position(st.render_multilayer_exr(f"deform_vector_{deform}"))
+            covered = np.any(position != 0.0, axis=-1)
+            self.assertGreater(int(covered.sum()), 200, "the plane is in view")
+            error = np.abs(vector[covered] - np.array(expected, dtype=np.float32)).max()
+            print(f"\nVector of a deforming plane (Deformation {'on' if deform else 'off'}), Blender "
+                  f"{bpy.app.version_string}: {int(covered.sum())} px covered, max |error| {error:.2e} px")
+            self.assertLess(error, 1e-3)
+        self.assertEqual(scene.frame_current, 5)
 
 
 class Reading(unittest.TestCase):

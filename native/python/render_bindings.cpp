@@ -220,6 +220,15 @@ struct RenderScene {
         shared.change()->set_mesh_frame_motion(index, matrix_from(previous, "previous"), matrix_from(next, "next"));
     }
 
+    // `previous`, `next`: (vertex count, 3) each, or None for none.
+    void set_mesh_frame_deformation(std::uint32_t index, const std::optional<FloatArray>& previous,
+                                    const std::optional<FloatArray>& next) {
+        if (!previous || !next) return shared.change()->set_mesh_frame_deformation(index, nullptr, nullptr, 0);
+        const py::ssize_t n = require_shape(*previous, "previous", {kAnySize, 3});
+        require_shape(*next, "next", {n, 3});
+        shared.change()->set_mesh_frame_deformation(index, previous->data(), next->data(), std::size_t(n));
+    }
+
     void set_gaussians_frame_motion(std::uint32_t index, const py::object& previous, const py::object& next) {
         shared.change()->set_gaussians_frame_motion(index, matrix_from(previous, "previous"),
                                                      matrix_from(next, "next"));
@@ -417,6 +426,9 @@ void register_render_bindings(py::module_& m) {
              "opening to its closing; None or fewer than 2: no motion")
         .def("set_mesh_frame_motion", &RenderScene::set_mesh_frame_motion, "index"_a, "previous"_a, "next"_a,
              "The Vector pass: mesh `index`'s matrices at the previous and the next frame")
+        .def("set_mesh_frame_deformation", &RenderScene::set_mesh_frame_deformation, "index"_a,
+             "previous"_a = py::none(), "next"_a = py::none(),
+             "The Vector pass: mesh `index`'s vertices (n, 3) at the previous and the next frame; None: none")
         .def("set_gaussians_frame_motion", &RenderScene::set_gaussians_frame_motion, "index"_a, "previous"_a, "next"_a,
              "The Vector pass: Gaussian cloud `index`'s matrices at the previous and the next frame")
         .def("set_gaussian_shading", &RenderScene::set_gaussian_shading, "index"_a, "shading"_a = py::none(),

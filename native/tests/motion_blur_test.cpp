@@ -738,3 +738,66 @@ TEST(MotionVectors, MovingObjectAndCameraGiveTheirImageMotion) {
         EXPECT_LT(error, 1e-3);
     }
 }
+
+// A deforming mesh's Vector (Scene::set_mesh_frame_deformation): its vertices D px to the left at the previous
+// frame and D to the right at the next, under a still camera, read (-D, 0, -D, 0) wherever it is seen; on a mesh
+// whose object also moves D px a frame, both add: (-2D, 0, -2D, 0); a vertex that stays still while the others move
+// gives each point of a triangle its barycentric share (the plane's vertices 0 and 1 moved, 2 and 3 still: the
+// vector grows linearly from the still edge); without it the object's matrices alone count.
+TEST(MotionVectors, DeformingMeshGivesItsVerticesMotion) {
+    const TestMesh plane = make_quad_z(-0.1f, 0.1f, -0.1f, 0.1f, -kDepth, 0);
+    const float d = float(10.0 / kPixelsPerUnit);
+    const std::vector<float> previous = shifted_bar_steps(plane, {-d}), next = shifted_bar_steps(plane, {d});
+    Camera c = test_camera();
+    c.frame_motion = {Matrix4{}, Matrix4{}};
+    RenderSettings st = test_settings(1);
+    auto max_error = [&](const Film& film, float expected_x) {
+        double error = 0.0;
+        std::size_t seen = 0;
+        for (std::size_t px = 0; px < film.pixel_count(); ++px) {
+            if (std::isinf(film.depth()[px])) continue;
+            ++seen;
+            const float* v = &film[FilmChannel::Vector][4 * px];
+            const float expected[4] = {expected_x, 0.0f, expected_x, 0.0f};
+            for (int k = 0; k < 4; ++k) error = std::max(error, double(std::abs(v[k] - expected[k])));
+        }
+        EXPECT_GT(seen, 100u);
+        return error;
+    };
+    Scene scene;
+    scene.set_world(black_world());
+    scene.add_material(emissive(1, 1, 1));
+    scene.add_mesh(plane.desc());
+    EXPECT_LT(max_error(render(scene, c, st), 0.0f), 1e-6) << "still";
+    scene.set_mesh_frame_deformation(0, previous.data(), next.data(), plane.vertex_count());
+    const double deformed = max_error(render(scene, c, st), -10.0f);
+    scene.set_mesh_frame_motion(0, Matrix4::translation(-d, 0, 0), Matrix4::translation(d, 0, 0));
+    const double both = max_error(render(scene, c, st), -20.0f);
+    std::printf("deforming mesh: max |vector error| %.2e px, deforming and moving %.2e px\n", deformed, both);
+    EXPECT_LT(deformed, 1e-3);
+    EXPECT_LT(both, 1e-3);
+    scene.set_mesh_frame_deformation(0, nullptr, nullptr, 0);
+    EXPECT_LT(max_error(render(scene, c, st), -10.0f), 1e-3) << "the object's matrices alone";
+    // Vertices 0 and 1 (y = -0.1) moved, 2 and 3 (y = +0.1) still: a point's x vector is -D times its share of the
+    // moved edge, (0.1 - y) / 0.2, which is linear in the image row.
+    scene.set_mesh_frame_motion(0, Matrix4{}, Matrix4{});
+    std::vector<float> half_previous = previous, half_next = next;
+    for (int i : {2, 3}) half_previous[3 * i] = half_next[3 * i] = plane.vertices[3 * i];
+    scene.set_mesh_frame_deformation(0, half_previous.data(), half_next.data(), plane.vertex_count());
+    const Film half = render(scene, c, st);
+    double error = 0.0;
+    for (int j = 0; j < half.height; ++j)
+        for (int i = 0; i < half.width; ++i) {
+            const std::size_t px = std::size_t(j) * half.width + i;
+            if (std::isinf(half.depth()[px])) continue;
+            const double y = half[FilmChannel::Position][3 * px + 1];  // the surface point (world)
+            const double expected = -10.0 * (0.1 - y) / 0.2;
+            error = std::max(error, std::abs(half[FilmChannel::Vector][4 * px] - expected));
+        }
+    std::printf("half-deformed mesh: max |vector error| %.2e px\n", error);
+    EXPECT_LT(error, 1e-3);
+    EXPECT_THROW(scene.set_mesh_frame_deformation(0, previous.data(), next.data(), plane.vertex_count() + 1),
+                 InvalidArgument);
+    EXPECT_THROW(scene.set_mesh_frame_deformation(1, previous.data(), next.data(), plane.vertex_count()),
+                 InvalidArgument);
+}

@@ -152,17 +152,30 @@ def _placements(engine, depsgraph, times, keys, camera, deforming=frozenset()):
 def frame_motion(engine, depsgraph):
     """The Vector pass's motion: a ShutterMotion whose matrices are each object's and the camera's at the previous
     and the next frame (Cycles' motion pass, MOTION_PASS: the frame before and after, whatever the shutter), for every
-    object drawn at both; the camera's even when still (the pass projects through it)."""
+    object drawn at both; the camera's even when still (the pass projects through it); and whose deformation is a
+    deforming mesh's vertices at both (use_deform_motion; not polygon splat objects, whose Gaussians move by their
+    object's matrices in this pass), when it has as many at both."""
     scene = depsgraph.scene
     time = scene.frame_current + float(scene.frame_subframe)
-    keys = {instance_key(instance) for instance in depsgraph.object_instances}
-    placed = _placements(engine, depsgraph, (time - 1.0, time + 1.0), keys, scene.camera is not None)
+    keys, deforming = set(), set()
+    for instance in depsgraph.object_instances:
+        key = instance_key(instance)
+        keys.add(key)
+        obj, parent = instance.object.original, instance.parent.original if instance.is_instance else None
+        if uses_deform_motion(obj, parent) and may_deform(obj, scene) and splat_object.kind_of(obj) is None:
+            deforming.add(key)
+    placed = _placements(engine, depsgraph, (time - 1.0, time + 1.0), keys, scene.camera is not None, deforming)
     objects = {}
     for key in keys:
         if (key, time - 1.0) in placed and (key, time + 1.0) in placed:
             objects[key] = np.stack((placed[key, time - 1.0], placed[key, time + 1.0]))
+    deformation = {}
+    for key in deforming:
+        positions = [placed.get(("vertices", key, t)) for t in (time - 1.0, time + 1.0)]
+        if all(p is not None for p in positions) and len(positions[0]) == len(positions[1]):
+            deformation[key] = np.stack(positions)
     camera = np.stack((placed["camera", time - 1.0], placed["camera", time + 1.0])) if scene.camera else None
-    return ShutterMotion(objects, camera)
+    return ShutterMotion(objects, camera, deformation=deformation)
 
 
 def shutter_motion(engine, depsgraph):

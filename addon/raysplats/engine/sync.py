@@ -491,14 +491,16 @@ class SceneSync:
 
     def apply_frame_motion(self, motion):
         """Gives each native mesh and cloud its object's matrices at the previous and next frames (a
-        motion_blur.ShutterMotion of motion_blur.frame_motion), for the Vector pass."""
+        motion_blur.ShutterMotion of motion_blur.frame_motion), and a deforming mesh its vertices there, for the Vector
+        pass."""
         for key, is_mesh, index in self.instances:
             matrices = motion.objects.get(key)
-            if matrices is None:
-                continue
             if is_mesh:
-                self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
-            else:
+                if matrices is not None:
+                    self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
+                vertices = self._mesh_steps(index, motion.deformation.get(key))
+                self.render_scene.set_mesh_frame_deformation(index, *(() if vertices is None else vertices))
+            elif matrices is not None:
                 self.render_scene.set_gaussians_frame_motion(index, matrices[0], matrices[1])
 
     def _name_for_cryptomatte(self, index, obj, gaussian_material=None):

@@ -463,6 +463,27 @@ void Scene::set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, 
     m.frame_motion = FrameMotion::between(m.desc.object_to_world, previous, next);
 }
 
+void Scene::set_mesh_frame_deformation(std::uint32_t index, const float* previous, const float* next,
+                                       std::size_t vertex_count) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    MeshRecord& m = *impl_->meshes[index];
+    const std::string name = at("mesh", index);
+    if (!previous || !next) {
+        m.frame_previous.clear();
+        m.frame_next.clear();
+        return;
+    }
+    if (vertex_count != m.desc.vertex_count)
+        throw InvalidArgument(name + ": a frame deformation of " + std::to_string(vertex_count) +
+                              " vertices (the mesh has " + std::to_string(m.desc.vertex_count) + ")");
+    for (std::size_t i = 0; i < 3 * vertex_count; ++i)
+        if (!std::isfinite(previous[i]) || !std::isfinite(next[i]))
+            throw InvalidArgument(name + ": frame deformation vertex " + std::to_string(i / 3) +
+                                  " has a NaN or Inf coordinate");
+    m.frame_previous.assign(previous, previous + 3 * vertex_count);
+    m.frame_next.assign(next, next + 3 * vertex_count);
+}
+
 void Scene::set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
     if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
     previous.check_affine((at("Gaussian cloud", index) + " previous frame's matrix").c_str());

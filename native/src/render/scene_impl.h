@@ -32,6 +32,8 @@ struct MeshRecord {
     std::vector<float> deformation;
     std::size_t deformation_steps = 0;
     FrameMotion frame_motion;  // Scene::set_mesh_frame_motion's (the Vector pass)
+    // Scene::set_mesh_frame_deformation's vertices at the previous and the next frame (empty: none).
+    std::vector<float> frame_previous, frame_next;
     // Scene::set_mesh_cryptomatte_names (kept by update_mesh): the object's and the asset's Cryptomatte ids.
     float cryptomatte_object = 0.0f, cryptomatte_asset = 0.0f;
 

@@ -156,6 +156,13 @@ public:
     // them is still. Forgotten when the object's matrix or data is replaced (update_*, set_gaussians_transform). No
     // rebuild is needed.
     void set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
+    // The Vector pass of a deforming mesh: its vertex positions (object space, vertex_count * 3 floats each, copied;
+    // vertex_count must be the mesh's) at the previous and at the next frame, placed by set_mesh_frame_motion's
+    // matrices (the frame's object_to_world without them): a surface point moves as the point of the same triangle
+    // and barycentric coordinates does, as Cycles' motion pass takes a deforming mesh's vertex motion. Null: none
+    // (the object's matrices alone). NaN or Inf is an InvalidArgument; update_mesh drops them.
+    void set_mesh_frame_deformation(std::uint32_t index, const float* previous, const float* next,
+                                    std::size_t vertex_count);
     void set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
     // Whether some object has motion (set_*_motion with two matrices or more, set_*_deformation with two steps or
     // more).
