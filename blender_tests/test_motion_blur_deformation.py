@@ -10,6 +10,7 @@
 # - what is read: the vertices of a deforming mesh at each step (the frame put back afterwards), nothing for a still
 #   mesh or with Deformation off, a textured mesh's steps mapped to its corner vertices as its frame's are, and a
 #   mesh whose vertex count changes during the shutter is left sharp with a warning, as Cycles does;
+# - with Persistent Data a kept scene renders each frame as a fresh one;
 # - the Vector pass (motion blur off): a plane whose vertices a shape key moves reads its vertices' motion on the
 #   image (within 1e-3 px), and only its object's with Deformation off.
 import unittest
@@ -19,7 +20,7 @@ import bpy
 import numpy as np
 
 import splat_testing as st
-from raysplats.engine import motion_blur, sync, ui
+from raysplats.engine import final, motion_blur, sync, ui
 from test_motion_blur import CYCLES_SAMPLES, CYCLES_TOLERANCE, PIXELS_PER_UNIT, SPEED, ortho_scene, spread_x
 from test_vector_pass import base_scene, vector_and_position
 
@@ -161,6 +162,26 @@ class DeformedSplats(unittest.TestCase):
         scene.render.use_motion_blur = False
         np.testing.assert_array_equal(sharp, st.render_to_array("deform_splats_blur_off"))
         self.assertFalse(np.array_equal(sharp, blurred))
+
+
+class PersistentData(unittest.TestCase):
+    def test_kept_scene_renders_as_fresh(self):
+        # Persistent Data keeps the native scene between renders: frames 5 and 6 with motion blur, then 6 without, of
+        # a deforming bar and a deforming polygon splat object, each equal to a render that built its scene anew.
+        images = {}
+        for persistent in (False, True):
+            scene = ortho_scene(8)
+            shape_key_bar()
+            shape_key_splats()
+            scene.render.use_persistent_data = persistent
+            for frame, blur in ((5, True), (6, True), (6, False)):
+                scene.frame_set(frame)
+                scene.render.use_motion_blur = blur
+                images[persistent, frame, blur] = st.render_to_array(f"deform_persistent_{persistent}_{frame}_{blur}")
+            self.assertEqual(final.last_render["scene"] != "new", persistent)
+        for frame, blur in ((5, True), (6, True), (6, False)):
+            np.testing.assert_array_equal(images[True, frame, blur], images[False, frame, blur])
+        self.assertFalse(np.array_equal(images[False, 6, True], images[False, 6, False]))
 
 
 class VectorPass(unittest.TestCase):

@@ -337,6 +337,7 @@ class SceneSync:
                                                            part["scales"], part["opacities"], part["sh"])
                 self.render_scene.set_gaussians_matrix(index, matrix)
                 self.sources[uid], self.spare_sources[uid] = source, previous.unshared_with(source)
+                self._keep_deform_source(index, source, count)
                 return True
         cloud = self._recover(obj, source)
         self.faces_recovered += len(source.arrays[2])
@@ -349,7 +350,14 @@ class SceneSync:
         self.stats.splats += len(cloud["opacities"]) - count
         self.clouds[uid] = (index, len(cloud["opacities"]))
         self._keep_source(uid, source, cloud)
+        self._keep_deform_source(index, source, len(cloud["opacities"]))
         return True
+
+    def _keep_deform_source(self, index, source, count):
+        """After an edit (Persistent Data's next frame): what native cloud `index`'s deformation is recovered from,
+        when it may deform."""
+        if index in self.deform_sources:
+            self.deform_sources[index] = (source, count) + self.deform_sources[index][2:]
 
     def _build(self, depsgraph):
         render_scene, stats = self.render_scene, self.stats
