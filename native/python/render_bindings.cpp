@@ -189,12 +189,44 @@ struct RenderScene {
         shared.change()->set_mesh_motion(index, matrices_from(matrices, "matrices"));
     }
 
+    // `vertices`: (steps, vertex count, 3), or None for none.
+    void set_mesh_deformation(std::uint32_t index, const std::optional<FloatArray>& vertices) {
+        if (!vertices) return shared.change()->set_mesh_deformation(index, nullptr, 0, 0);
+        const py::ssize_t steps = require_shape(*vertices, "vertices", {kAnySize, kAnySize, 3});
+        shared.change()->set_mesh_deformation(index, vertices->data(), std::size_t(steps),
+                                              std::size_t(vertices->shape(1)));
+    }
+
+    // `positions`, `rotations`, `scales`: (steps, Gaussians, 3 / 4 / 3), or None for none.
+    void set_gaussians_deformation(std::uint32_t index, const std::optional<FloatArray>& positions,
+                                   const std::optional<FloatArray>& rotations, const std::optional<FloatArray>& scales) {
+        if (!positions && !rotations && !scales)
+            return shared.change()->set_gaussians_deformation(index, 0, nullptr, nullptr, nullptr, 0);
+        if (!positions || !rotations || !scales)
+            throw raysplats::InvalidArgument("positions, rotations and scales are given together");
+        const py::ssize_t steps = require_shape(*positions, "positions", {kAnySize, kAnySize, 3});
+        const py::ssize_t n = positions->shape(1);
+        require_shape(*rotations, "rotations", {steps, n, 4});
+        require_shape(*scales, "scales", {steps, n, 3});
+        shared.change()->set_gaussians_deformation(index, std::size_t(steps), positions->data(), rotations->data(),
+                                                   scales->data(), std::size_t(n));
+    }
+
     void set_gaussians_motion(std::uint32_t index, const py::object& matrices) {
         shared.change()->set_gaussians_motion(index, matrices_from(matrices, "matrices"));
     }
 
     void set_mesh_frame_motion(std::uint32_t index, const py::object& previous, const py::object& next) {
         shared.change()->set_mesh_frame_motion(index, matrix_from(previous, "previous"), matrix_from(next, "next"));
+    }
+
+    // `previous`, `next`: (vertex count, 3) each, or None for none.
+    void set_mesh_frame_deformation(std::uint32_t index, const std::optional<FloatArray>& previous,
+                                    const std::optional<FloatArray>& next) {
+        if (!previous || !next) return shared.change()->set_mesh_frame_deformation(index, nullptr, nullptr, 0);
+        const py::ssize_t n = require_shape(*previous, "previous", {kAnySize, 3});
+        require_shape(*next, "next", {n, 3});
+        shared.change()->set_mesh_frame_deformation(index, previous->data(), next->data(), std::size_t(n));
     }
 
     void set_gaussians_frame_motion(std::uint32_t index, const py::object& previous, const py::object& next) {
@@ -383,11 +415,22 @@ void register_render_bindings(py::module_& m) {
         .def("set_mesh_motion", &RenderScene::set_mesh_motion, "index"_a, "matrices"_a,
              "Motion blur: mesh `index`'s matrices (n, 4, 4) at equally spaced times from the shutter's opening to its "
              "closing; None or fewer than 2: no motion")
+        .def("set_mesh_deformation", &RenderScene::set_mesh_deformation, "index"_a, "vertices"_a,
+             "Deformation blur: mesh `index`'s vertex positions (steps, vertices, 3) at equally spaced times from the "
+             "shutter's opening to its closing; None or fewer than 2 steps: none")
+        .def("set_gaussians_deformation", &RenderScene::set_gaussians_deformation, "index"_a,
+             "positions"_a = py::none(), "rotations"_a = py::none(), "scales"_a = py::none(),
+             "Deformation blur: Gaussian cloud `index`'s Gaussians (positions (steps, n, 3), rotations (steps, n, 4), "
+             "scales (steps, n, 3)) at equally spaced times from the shutter's opening to its closing; None or fewer "
+             "than 2 steps: none")
         .def("set_gaussians_motion", &RenderScene::set_gaussians_motion, "index"_a, "matrices"_a,
              "Motion blur: Gaussian cloud `index`'s matrices (n, 4, 4) at equally spaced times from the shutter's "
              "opening to its closing; None or fewer than 2: no motion")
         .def("set_mesh_frame_motion", &RenderScene::set_mesh_frame_motion, "index"_a, "previous"_a, "next"_a,
              "The Vector pass: mesh `index`'s matrices at the previous and the next frame")
+        .def("set_mesh_frame_deformation", &RenderScene::set_mesh_frame_deformation, "index"_a,
+             "previous"_a = py::none(), "next"_a = py::none(),
+             "The Vector pass: mesh `index`'s vertices (n, 3) at the previous and the next frame; None: none")
         .def("set_gaussians_frame_motion", &RenderScene::set_gaussians_frame_motion, "index"_a, "previous"_a, "next"_a,
              "The Vector pass: Gaussian cloud `index`'s matrices at the previous and the next frame")
         .def("set_gaussian_shading", &RenderScene::set_gaussian_shading, "index"_a, "shading"_a = py::none(),

@@ -2,6 +2,7 @@
 # from their evaluated meshes, materials (materials.py), lights in Blender units, the world and the camera.
 
 import collections
+from types import SimpleNamespace
 
 import bpy
 import numpy as np
@@ -118,7 +119,8 @@ def corner_mesh_arrays(mesh, uv_map):
 
     Blender stores UVs per loop (face corner) while the renderer's UVs are per vertex: a vertex on a UV seam
     has several. Unsharing the vertices (3 per triangle) gives every corner its loop's UV. Returns
-    (vertices, triangles, slots, uvs, uv_layer_name); uvs is None when the mesh has no such UV map."""
+    (vertices, triangles, slots, uvs, uv_layer_name, corners), corners the mesh vertex of each vertex; uvs is None when
+    the mesh has no such UV map."""
     vertices, corner_vertices, slots = triangle_mesh_arrays(mesh)
     layer = mesh.uv_layers.get(uv_map) if uv_map else None
     if layer is None:
@@ -128,12 +130,12 @@ def corner_mesh_arrays(mesh, uv_map):
     vertices = vertices[corners]
     triangles = np.arange(len(corners), dtype=np.uint32).reshape(-1, 3)
     if layer is None:
-        return vertices, triangles, slots, None, None
+        return vertices, triangles, slots, None, None, corners
     loops = np.empty(len(corners), dtype=np.uint32)
     mesh.loop_triangles.foreach_get("loops", loops)
     loop_uvs = np.empty(len(mesh.loops) * 2, dtype=np.float32)
     layer.data.foreach_get("uv", loop_uvs)
-    return vertices, triangles, slots, loop_uvs.reshape(-1, 2)[loops], layer.name
+    return vertices, triangles, slots, loop_uvs.reshape(-1, 2)[loops], layer.name, corners
 
 
 class SceneStats:
@@ -221,13 +223,19 @@ class SceneSync:
         self.sources = {}  # interactive: original object -> _CloudSource of its cloud (absent: recover all next time)
         self.spare_sources = {}  # original object -> an older _CloudSource, whose arrays the next read reuses
         self.faces_recovered = 0  # by the last update() (diagnostics: an edit of a few splats recovers only them)
-        self.meshes = {}  # original object -> (native mesh index, (vertices, triangles, face_materials, uvs))
+        # original object -> (native mesh index, (vertices, triangles, face_materials, uvs, vertex_map)), vertex_map as
+        # _mesh_arrays gives it
+        self.meshes = {}
         self.compact = {}  # original compact splat object (drawn once) -> (native cloud index, splats)
         self.pass_indices = {}  # original object (drawn once) -> pass_indices() as given to the native scene
         # Every native mesh and cloud as (motion_blur.instance_key, is a mesh, native index), and whether some have
         # motion (apply_motion).
         self.instances = []
         self.has_motion = False
+        self.vertex_maps = {}  # native mesh index -> its vertex_map (_mesh_arrays)
+        # Native cloud index of a polygon object that may deform during the shutter -> (its _CloudSource, its
+        # Gaussian count, its name, its recovery settings), for apply_motion.
+        self.deform_sources = {}
 
         # The names given to the core for the Cryptomatte passes, by kind: their manifests (passes.py).
         self.cryptomatte_names = {"object": set(), "material": set(), "asset": set()}
@@ -332,6 +340,7 @@ class SceneSync:
                                                            part["scales"], part["opacities"], part["sh"])
                 self.render_scene.set_gaussians_matrix(index, matrix)
                 self.sources[uid], self.spare_sources[uid] = source, previous.unshared_with(source)
+                self._keep_deform_source(index, source, count)
                 return True
         cloud = self._recover(obj, source)
         self.faces_recovered += len(source.arrays[2])
@@ -344,7 +353,14 @@ class SceneSync:
         self.stats.splats += len(cloud["opacities"]) - count
         self.clouds[uid] = (index, len(cloud["opacities"]))
         self._keep_source(uid, source, cloud)
+        self._keep_deform_source(index, source, len(cloud["opacities"]))
         return True
+
+    def _keep_deform_source(self, index, source, count):
+        """After an edit (Persistent Data's next frame): what native cloud `index`'s deformation is recovered from,
+        when it may deform."""
+        if index in self.deform_sources:
+            self.deform_sources[index] = (source, count) + self.deform_sources[index][2:]
 
     def _build(self, depsgraph):
         render_scene, stats = self.render_scene, self.stats
@@ -370,6 +386,8 @@ class SceneSync:
                         source = self._read(obj, None if instance.is_instance else depsgraph)
                     with self.clock.stage("convert"):
                         cloud = self._recover(obj, source)
+                    deforms = not self.interactive and depsgraph.scene.render.use_motion_blur \
+                        and motion_blur.may_deform(obj.original, depsgraph.scene)
                 else:
                     with self.clock.stage("read"):
                         source, cloud = None, self._compact_cloud(obj)
@@ -381,6 +399,11 @@ class SceneSync:
                                                        np.array(matrix, dtype=np.float32))
                 stats.splats += len(cloud["opacities"])
                 self.instances.append((motion_blur.instance_key(instance), False, index))
+                if kind == splat_object.POLYGONS and deforms:
+                    # What a deformation across the shutter is recovered from (apply_motion): the frame's faces and
+                    # attributes with each step's vertices.
+                    self.deform_sources[index] = (source, len(cloud["opacities"]), obj.name, SimpleNamespace(
+                        vertices_per_polygon=obj.raysplats.vertices_per_polygon, radius=obj.raysplats.radius))
                 render_scene.set_gaussian_shading(index, _object_shading(obj))
                 render_scene.set_gaussian_pass_indices(index, *pass_indices(obj))
                 material = first_material(obj)
@@ -402,13 +425,14 @@ class SceneSync:
                     arrays = self._mesh_arrays(obj, materials, mesh_cache)
                 if arrays is None:
                     continue
-                vertices, triangles, face_materials, uvs = arrays
+                vertices, triangles, face_materials, uvs, vertex_map = arrays
                 with self.clock.stage("scene"):
                     index = render_scene.add_mesh(vertices, triangles, np.array(matrix, dtype=np.float32),
                                                   face_materials=face_materials, uvs=uvs, pass_index=obj.pass_index,
                                                   holdout=holdout, shadow_catcher=shadow_catcher)
                 stats.triangles += len(triangles)
                 self.instances.append((motion_blur.instance_key(instance), True, index))
+                self.vertex_maps[index] = vertex_map
                 self._name_for_cryptomatte(index, obj)
                 if uid is not None:
                     self.meshes[uid] = (index, arrays)
@@ -424,28 +448,70 @@ class SceneSync:
 
     def apply_motion(self, motion):
         """Gives each native mesh and cloud its object's motion across the shutter (a motion_blur.ShutterMotion, or
-        None), and takes back the motion an earlier frame gave. Nothing to do for a still scene that had none."""
+        None), and each native mesh its deformation, and takes back the motion an earlier frame gave. Nothing to do
+        for a still scene that had none."""
         objects = motion.objects if motion is not None else {}
-        if not objects and not self.has_motion:
+        deformation = motion.deformation if motion is not None else {}
+        for message in motion.warnings if motion is not None else ():
+            self._warn_once(message)
+        if not objects and not deformation and not self.has_motion:
             return
         for key, is_mesh, index in self.instances:
             matrices = objects.get(key)
             if is_mesh:
                 self.render_scene.set_mesh_motion(index, matrices)
+                self.render_scene.set_mesh_deformation(index, self._mesh_steps(index, deformation.get(key)))
             else:
                 self.render_scene.set_gaussians_motion(index, matrices)
-        self.has_motion = bool(objects)
+                self._deform_cloud(index, deformation.get(key))
+        self.has_motion = bool(objects or deformation)
+
+    def _deform_cloud(self, index, positions):
+        """Gives native cloud `index` the Gaussians recovered from its polygon object's vertices at each step of a
+        deformation (positions: the mesh's vertices at each step, or None: none), with the frame's faces and
+        attributes. Left out, with a warning, when a step does not give the frame's Gaussians one for one (a
+        polygon that degenerates at some step is dropped there)."""
+        source = self.deform_sources.get(index)
+        if source is None or positions is None:
+            self.render_scene.set_gaussians_deformation(index)
+            return
+        source, count, name, settings = source
+        steps = []
+        if positions.shape[1] == len(source.arrays[0]):
+            with self.clock.stage("convert"):
+                for step in positions:
+                    steps.append(polygon_mesh.recover_from_arrays(self.core, (step,) + tuple(source.arrays[1:]),
+                                                                  source.attributes, settings, IDENTITY,
+                                                                  adjust_colors=False))
+        if len(steps) != len(positions) or any(len(step["opacities"]) != count for step in steps):
+            self._warn_once(f"Object '{name}': its Gaussians change in number during the shutter; its deformation "
+                            "is not blurred")
+            self.render_scene.set_gaussians_deformation(index)
+            return
+        self.render_scene.set_gaussians_deformation(
+            index, *(np.stack([step[field] for step in steps]) for field in ("positions", "rotations", "scales")))
+
+    def _mesh_steps(self, index, positions):
+        """The vertices the core holds for native mesh `index` at each step of a mesh's deformation (positions: the
+        mesh's vertices at each step, or None), or None when they cannot be (the mesh read at the frame had another
+        vertex count)."""
+        count, corners = self.vertex_maps[index]
+        if positions is None or positions.shape[1] != count:
+            return None
+        return positions if corners is None else np.ascontiguousarray(positions[:, corners])
 
     def apply_frame_motion(self, motion):
         """Gives each native mesh and cloud its object's matrices at the previous and next frames (a
-        motion_blur.ShutterMotion of motion_blur.frame_motion), for the Vector pass."""
+        motion_blur.ShutterMotion of motion_blur.frame_motion), and a deforming mesh its vertices there, for the Vector
+        pass."""
         for key, is_mesh, index in self.instances:
             matrices = motion.objects.get(key)
-            if matrices is None:
-                continue
             if is_mesh:
-                self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
-            else:
+                if matrices is not None:
+                    self.render_scene.set_mesh_frame_motion(index, matrices[0], matrices[1])
+                vertices = self._mesh_steps(index, motion.deformation.get(key))
+                self.render_scene.set_mesh_frame_deformation(index, *(() if vertices is None else vertices))
+            elif matrices is not None:
                 self.render_scene.set_gaussians_frame_motion(index, matrices[0], matrices[1])
 
     def _name_for_cryptomatte(self, index, obj, gaussian_material=None):
@@ -463,7 +529,10 @@ class SceneSync:
             self.cryptomatte_names["material"].add(gaussian_material)
 
     def _mesh_arrays(self, obj, materials, mesh_cache):
-        """(vertices, triangles, face_materials, uvs) of a mesh-like object, or None when it has no triangles."""
+        """(vertices, triangles, face_materials, uvs, vertex_map) of a mesh-like object, or None when it has no
+        triangles. vertex_map: (the mesh's vertex count, the mesh vertex of each vertex given to the core, or None when
+        they are the mesh's own), which maps the mesh's deformation (motion_blur.ShutterMotion) to the core's
+        vertices."""
         slot_materials = [slot.material for slot in obj.material_slots]
         material_indices = np.array([materials.index(m) for m in slot_materials] or [materials.default],
                                     dtype=np.uint32)
@@ -477,10 +546,10 @@ class SceneSync:
             mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
             try:
                 if uv_map is None:
-                    arrays = triangle_mesh_arrays(mesh) + (None,)
+                    arrays = triangle_mesh_arrays(mesh) + (None, (len(mesh.vertices), None))
                 else:
-                    vertices, triangles, slots, uvs, layer = corner_mesh_arrays(mesh, uv_map)
-                    arrays = vertices, triangles, slots, uvs
+                    vertices, triangles, slots, uvs, layer, corners = corner_mesh_arrays(mesh, uv_map)
+                    arrays = vertices, triangles, slots, uvs, (len(mesh.vertices), corners)
                     if layer is None:
                         self._warn_once(f"Mesh '{mesh.name}' has no UV map but a textured material; the texture "
                                         "is looked up at UV (0, 0)")
@@ -491,11 +560,11 @@ class SceneSync:
                     obj.to_mesh_clear()
             if key:
                 mesh_cache[key] = arrays
-        vertices, triangles, slots, uvs = arrays
+        vertices, triangles, slots, uvs, vertex_map = arrays
         if not len(triangles):
             return None
         face_materials = material_indices[np.minimum(slots, len(material_indices) - 1)]
-        return vertices, triangles, face_materials, uvs
+        return vertices, triangles, face_materials, uvs, vertex_map
 
     @staticmethod
     def _membership(depsgraph):
@@ -588,7 +657,7 @@ class SceneSync:
                         return "rebuild"
                     self.stats.triangles += len(arrays[1]) - len(self.meshes[uid][1][1])
                     self.meshes[uid] = (index, arrays)
-                vertices, triangles, face_materials, uvs = arrays
+                vertices, triangles, face_materials, uvs, self.vertex_maps[index] = arrays
                 self.render_scene.update_mesh(index, vertices, triangles, matrix, face_materials=face_materials,
                                               uvs=uvs, pass_index=data.pass_index, holdout=self.masks[uid][0],
                                               shadow_catcher=self.masks[uid][1])

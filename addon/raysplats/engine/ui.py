@@ -167,8 +167,10 @@ class RAYSPLATS_RENDER_PT_motion_blur_curve(RaySplatsPanel, bpy.types.Panel):
 
 
 class RAYSPLATS_OBJECT_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
-    """An object's motion blur switch and steps (Object.cycles, the Cycles add-on's, which the engine reads as
-    Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation is not blurred (docs)."""
+    """An object's motion blur switch, steps and Deformation switch (Object.cycles, the Cycles add-on's, which the
+    engine reads as Cycles does), as Cycles' Object Properties > Motion Blur draws them. Deformation blurs meshes and
+    polygon splat objects whose vertices move during the shutter; point splat objects keep their object's motion only
+    (docs)."""
     bl_label = "Motion Blur"
     bl_context = "object"
     bl_options = {"DEFAULT_CLOSED"}
@@ -187,7 +189,10 @@ class RAYSPLATS_OBJECT_PT_motion_blur(RaySplatsPanel, bpy.types.Panel):
         layout.use_property_split = True
         settings = context.object.cycles
         layout.active = context.scene.render.use_motion_blur and settings.use_motion_blur
-        layout.prop(settings, "motion_steps", text="Steps")
+        column = layout.column()
+        column.prop(settings, "motion_steps", text="Steps")
+        if context.object.type != "CAMERA":
+            column.prop(settings, "use_deform_motion", text="Deformation")
 
 
 class RAYSPLATS_RENDER_PT_performance(RaySplatsPanel, bpy.types.Panel):

@@ -12,11 +12,22 @@
 namespace raysplats {
 namespace {
 
-// Bounds callback (rtcSetGeometryBoundsFunction): the box of primitive primID, in the geometry's object space. No
-// motion blur, so timeStep is always 0.
+// Bounds callback (rtcSetGeometryBoundsFunction): the box of primitive primID, in the geometry's object space, at
+// time step timeStep: always 0 without deformation; with it, Embree asks for every step (GaussianSet::
+// build_deformation says why those boxes hold the group between the steps too).
 void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
     const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
-    *args->bounds_o = chunk->group_bounds[args->primID];
+    *args->bounds_o = chunk->deformed.empty()
+                          ? chunk->group_bounds[args->primID]
+                          : chunk->deformed_bounds[std::size_t(args->timeStep) * chunk->groups.size() + args->primID];
+}
+
+// The group a ray of time `time` is tested against: the chunk's own, or with deformation the group where that time
+// puts its Gaussians, made in `moved`.
+inline const GaussianGroup& group_at(const GaussianChunk& chunk, unsigned prim, float time, GaussianGroup& moved) {
+    if (chunk.deformed.empty()) return chunk.groups[prim];
+    chunk.set->deformed_group(chunk, prim, time, moved);
+    return moved;
 }
 
 // Exact ray test against every lane of a group: returns the mask of lanes whose support (GaussianGroup::support)
@@ -107,6 +118,7 @@ __attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFu
     // its own hits shrink it), so the images are the same.
     alignas(32) float ts[16][kGroupWidth], dist2s[16][kGroupWidth];
     unsigned masks[16];
+    GaussianGroup moved;  // (deformation: the group at a ray's time)
     std::uint32_t active = 0;
     for (unsigned i = 0; i < n; ++i)
         active |= std::uint32_t(args->valid[i] != 0 && RTCRayN_id(ray, n, i) < ctx->lane_count) << i;
@@ -118,7 +130,8 @@ __attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFu
         ++L.group_candidates;
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
         const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
-        masks[i] = test_group<S, Flat>(g, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), ts[i], dist2s[i]);
+        masks[i] = test_group<S, Flat>(group_at(*chunk, args->primID, RTCRayN_time(ray, n, i), moved), o, d,
+                                       RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), ts[i], dist2s[i]);
         with_candidates |= std::uint32_t(masks[i] != 0) << i;
     }
     for (; with_candidates; with_candidates &= with_candidates - 1) {
@@ -170,13 +183,15 @@ __attribute__((always_inline)) inline void occluded_groups(const RTCOccludedFunc
     const unsigned n = args->N;
     RTCRayN* ray = args->ray;
     alignas(32) float ts[kGroupWidth], dist2s[kGroupWidth];
+    GaussianGroup moved;  // (deformation: the group at a ray's time)
     for (unsigned i = 0; i < n; ++i) {
         if (!args->valid[i] || RTCRayN_id(ray, n, i) >= ctx->lane_count) continue;
         LaneState& L = ctx->lanes[RTCRayN_id(ray, n, i)];
         float& tfar = RTCRayN_tfar(ray, n, i);
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
         const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
-        for (unsigned mask = test_group<S, Flat>(g, o, d, RTCRayN_tnear(ray, n, i), tfar, ts, dist2s); mask;
+        const GaussianGroup& tested = group_at(*chunk, args->primID, RTCRayN_time(ray, n, i), moved);
+        for (unsigned mask = test_group<S, Flat>(tested, o, d, RTCRayN_tnear(ray, n, i), tfar, ts, dist2s); mask;
              mask &= mask - 1) {
             const int lane = __builtin_ctz(mask);
             const float alpha = std::min(kMaxAlpha, g.opacity[lane] * std::exp(-0.5f * dist2s[lane]));

@@ -64,6 +64,12 @@ void GaussianSet::set_transform(const Matrix4& m) {
 
 namespace {
 
+// The axes of scales s[0..2] from the largest scale to the smallest: the primitive's rows 0, 1 and 2.
+void order_by_scale(const float* s, int order[3]) {
+    order[0] = 0, order[1] = 1, order[2] = 2;
+    std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
+}
+
 // The primitive of Gaussian i of a cloud (see GaussianPrimitive).
 GaussianPrimitive make_primitive(const GaussianCloud& c, std::size_t i, bool flat) {
     const float* q = &c.rotations[4 * i];
@@ -75,8 +81,8 @@ GaussianPrimitive make_primitive(const GaussianCloud& c, std::size_t i, bool fla
     const std::array<float, 9> r = la::quaternion_to_rotation(w, x, y, z);
     const glm::vec3 axis[3] = {{r[0], r[3], r[6]}, {r[1], r[4], r[7]}, {r[2], r[5], r[8]}};
     const float* s = &c.scales[3 * i];
-    int order[3] = {0, 1, 2};
-    std::sort(order, order + 3, [&](int l, int r2) { return s[l] > s[r2]; });
+    int order[3];
+    order_by_scale(s, order);
     const float smax = std::max(s[order[0]], 1e-30f);
     auto inv_scale = [&](int k) { return 1.0f / std::max(s[k], 1e-6f * smax); };
     GaussianPrimitive g;
@@ -252,10 +258,99 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
     });
 }
 
+// The lanes at each step are the frame's groups' Gaussians (the same membership, so the callbacks keep every other
+// field of the group), with their rows in the first step's order of scales at every step (Scene::
+// set_gaussians_deformation aligned the steps' axes), so that a row stays one axis.
+// Bounds: Embree takes a user primitive's bounds at each time step and assumes them linearly interpolated in
+// between (rtcSetGeometryTimeStepCount; the bounds callback's timeStep), so they must contain the Gaussian at every
+// time of the segment, not only at the steps. A lane's box at step k is its centre there plus, on every axis, its
+// support radius times the largest standard deviation it has at any step: a sphere that holds the Gaussian however
+// it turns, and whose linear interpolation holds the interpolated Gaussian (its centre moves linearly, its scales
+// stay below that largest one).
+void GaussianSet::build_deformation(GaussianChunk& chunk) const {
+    const std::size_t steps = deformation.steps, groups = chunk.groups.size(), n = cloud->size();
+    chunk.deformed.clear();
+    chunk.deformed_bounds.clear();
+    if (steps < 2) return;
+    chunk.deformed.assign(steps * groups, DeformedLanes{});
+    chunk.deformed_bounds.assign(steps * groups, RTCBounds{});
+    tbb::parallel_for(std::size_t(0), groups, [&](std::size_t gi) {
+        const GaussianGroup& g = chunk.groups[gi];
+        float reach[kGroupWidth] = {};
+        for (std::uint32_t lane = 0; lane < g.count; ++lane) {
+            const std::size_t i = g.cloud_index[lane];
+            // (The steps' axes are aligned with one another, not with the cloud's: their own order of scales.)
+            int order[3];
+            order_by_scale(&deformation.scales[3 * i], order);
+            float largest = 0.0f;
+            for (std::size_t k = 0; k < steps; ++k) {
+                DeformedLanes& d = chunk.deformed[k * groups + gi];
+                const std::size_t at = k * n + i;
+                for (int a = 0; a < 3; ++a) d.center[a][lane] = deformation.positions[3 * at + a];
+                for (int a = 0; a < 4; ++a) d.rotation[a][lane] = deformation.rotations[4 * at + a];
+                for (int r = 0; r < 3; ++r) {
+                    d.scale[r][lane] = deformation.scales[3 * at + order[r]];
+                    d.axis[r][lane] = std::uint8_t(order[r]);
+                    largest = std::max(largest, d.scale[r][lane]);
+                }
+            }
+            reach[lane] = std::sqrt(g.support[lane]) * largest;
+        }
+        for (std::size_t k = 0; k < steps; ++k) {
+            const DeformedLanes& d = chunk.deformed[k * groups + gi];
+            glm::vec3 lower(std::numeric_limits<float>::infinity()), upper(-std::numeric_limits<float>::infinity());
+            for (std::uint32_t lane = 0; lane < g.count; ++lane) {
+                const glm::vec3 c(d.center[0][lane], d.center[1][lane], d.center[2][lane]);
+                lower = glm::min(lower, c - reach[lane]);
+                upper = glm::max(upper, c + reach[lane]);
+            }
+            RTCBounds& bb = chunk.deformed_bounds[k * groups + gi];
+            bb.lower_x = lower.x, bb.lower_y = lower.y, bb.lower_z = lower.z;
+            bb.upper_x = upper.x, bb.upper_y = upper.y, bb.upper_z = upper.z;
+        }
+    });
+}
+
+// Between two steps a Gaussian's centre and scales are interpolated linearly and its rotation by the normalised
+// linear interpolation of its quaternions (sign-aligned when they were stored, so that it turns the short way): at
+// the steps it is exact, between them it turns at nearly constant speed over the small angles of one step, and the
+// rows rebuilt from it stay orthogonal, so the Gaussian keeps its shape. (Interpolating the rows themselves would
+// shorten a turning Gaussian's inverse-scale rows, that is grow the Gaussian, beyond its bounds.) The rows are
+// made as make_primitive makes them, in the first step's order of scales.
+void GaussianSet::deformed_group(const GaussianChunk& chunk, std::uint32_t group, float time,
+                                 GaussianGroup& out) const {
+    const GaussianGroup& g = chunk.groups[group];
+    out = g;
+    const std::size_t steps = deformation.steps, groups = chunk.groups.size();
+    const float f = glm::clamp(time, 0.0f, 1.0f) * float(steps - 1);
+    const std::size_t k = std::min(std::size_t(f), steps - 2);
+    const float w = f - float(k), v = 1.0f - w;
+    const DeformedLanes& a = chunk.deformed[k * groups + group];
+    const DeformedLanes& b = chunk.deformed[(k + 1) * groups + group];
+    for (std::uint32_t lane = 0; lane < g.count; ++lane) {
+        for (int c = 0; c < 3; ++c) out.center[c][lane] = v * a.center[c][lane] + w * b.center[c][lane];
+        glm::vec4 q;
+        for (int c = 0; c < 4; ++c) q[c] = v * a.rotation[c][lane] + w * b.rotation[c][lane];
+        q /= glm::length(q);  // (sign-aligned unit quaternions: |q| >= 1/sqrt(2))
+        const std::array<float, 9> r = la::quaternion_to_rotation(q[0], q[1], q[2], q[3]);
+        float scale[3];
+        for (int row = 0; row < 3; ++row) scale[row] = v * a.scale[row][lane] + w * b.scale[row][lane];
+        const float smax = std::max(scale[0], 1e-30f);
+        for (int row = 0; row < 3; ++row) {
+            const int axis = a.axis[row][lane];
+            const float inv = flat && row == 2 ? 1.0f : 1.0f / std::max(scale[row], 1e-6f * smax);
+            for (int c = 0; c < 3; ++c) out.row[3 * row + c][lane] = r[3 * c + axis] * inv;
+        }
+    }
+}
+
 void GaussianSet::update_geometry(GaussianChunk& chunk) const {
     build_groups(chunk);
+    build_deformation(chunk);
     // User geometry: Embree asks the bounds callback for every primitive when the geometry is committed (and the
-    // scene that holds it), so the groups must be final here; the chunk's scene is committed by the caller.
+    // scene that holds it), so the groups must be final here; the chunk's scene is committed by the caller. With
+    // deformation, at each time step (gaussian_callbacks.cpp).
+    rtcSetGeometryTimeStepCount(chunk.geometry, deformation.steps >= 2 ? unsigned(deformation.steps) : 1u);
     rtcSetGeometryUserPrimitiveCount(chunk.geometry, unsigned(chunk.groups.size()));
     rtcCommitGeometry(chunk.geometry);
 }

@@ -65,6 +65,16 @@ struct alignas(32) GaussianGroup {
     std::uint32_t count;           // Gaussians in the group, lanes [0, count)
 };
 
+// Deformation blur (Scene::set_gaussians_deformation): a group's lanes (the same Gaussians as its GaussianGroup) at
+// one time step, from which GaussianSet::deformed_group makes the group a ray of some time is tested against. Lanes
+// >= the group's count are zero.
+struct alignas(32) DeformedLanes {
+    float center[3][kGroupWidth];       // [axis][lane]
+    float rotation[4][kGroupWidth];     // unit quaternion (w, x, y, z), sign-aligned with the previous step's
+    float scale[3][kGroupWidth];        // the standard deviation along the axis of row r of the primitive
+    std::uint8_t axis[3][kGroupWidth];  // which column of the rotation row r takes (the first step's order of scales)
+};
+
 // One Gaussian cloud in the scene. Primitives are in the cloud's own (object) frame and split into chunks of
 // consecutive primitives; each chunk is an Embree sub-scene instanced with the object-to-world matrix. So moving
 // the object only changes instance transforms, and an edit rebuilds only the chunks whose Gaussians changed
@@ -77,6 +87,10 @@ struct GaussianChunk {
     RTCGeometry geometry = nullptr;        // the user geometry inside `scene` (owned by it)
     std::vector<GaussianGroup, DefaultInitAllocator<GaussianGroup>> groups;  // the geometry's primitives (build_groups)
     std::vector<RTCBounds> group_bounds;   // their Embree bounds
+    // With the set's deformation (GaussianSet::deformation): the groups' lanes and their Embree bounds at each time
+    // step, [step * groups.size() + group]; empty without.
+    std::vector<DeformedLanes> deformed;
+    std::vector<RTCBounds> deformed_bounds;
     unsigned instance_id = RTC_INVALID_GEOMETRY_ID;  // geomID of the instance in the top-level scene
 };
 
@@ -85,6 +99,13 @@ struct GaussianSet {
     const GaussianCloud* cloud = nullptr;
     Matrix4 object_to_world;
     std::vector<Matrix4> motion;          // Scene::set_gaussians_motion's matrices (empty: none)
+    // Scene::set_gaussians_deformation's Gaussians (in cloud order) at `steps` equally spaced times across the
+    // shutter, step after step: centres, unit quaternions and scales, each step's axes in the order and signs nearest
+    // the previous step's (one Gaussian may be given with its axes named differently at two steps).
+    struct Deformation {
+        std::size_t steps = 0;  // 0: none
+        std::vector<float> positions, rotations, scales;
+    } deformation;
     FrameMotion frame_motion;             // Scene::set_gaussians_frame_motion's (the Vector pass)
     glm::mat3 linear{1.0f};               // A
     glm::vec3 translation{0.0f};          // b
@@ -133,6 +154,11 @@ struct GaussianSet {
     void update_geometry(GaussianChunk& chunk) const;
     // Groups the chunk's primitives (GaussianGroup) and computes their bounds.
     void build_groups(GaussianChunk& chunk) const;
+    // After build_groups: the chunk's DeformedLanes and bounds at each step of `deformation` (cleared without).
+    void build_deformation(GaussianChunk& chunk) const;
+    // Group `group` of a chunk with deformation as a ray of shutter time `time` sees it (its Gaussians interpolated
+    // between the two steps around `time`), written to `out`.
+    void deformed_group(const GaussianChunk& chunk, std::uint32_t group, float time, GaussianGroup& out) const;
 };
 
 }  // namespace raysplats

@@ -54,6 +54,12 @@ std::array<float, 4> MotionVectorProjector::vector(const glm::vec3& p, const Fra
         p_previous = glm::vec3(motion->to_previous * glm::vec4(p, 1.0f));
         p_next = glm::vec3(motion->to_next * glm::vec4(p, 1.0f));
     }
+    return vector_between(p, p_previous, p_next);
+}
+
+std::array<float, 4> MotionVectorProjector::vector_between(const glm::vec3& p, const glm::vec3& p_previous,
+                                                           const glm::vec3& p_next) const {
+    if (!active_) return {0.0f, 0.0f, 0.0f, 0.0f};
     const glm::vec2 centre = raster(current_, p);
     const glm::vec2 pre = raster(previous_, p_previous) - centre;
     const glm::vec2 post = centre - raster(next_, p_next);

@@ -36,6 +36,9 @@ public:
     bool active() const { return active_; }
     // The vector of a surface point `p` (world) of an object moving as `motion` (nullptr: still).
     std::array<float, 4> vector(const glm::vec3& p, const FrameMotion* motion) const;
+    // The vector of a surface point `p` (world) that is at `previous` at the previous frame and at `next` at the next
+    // (world; a deforming mesh's point).
+    std::array<float, 4> vector_between(const glm::vec3& p, const glm::vec3& previous, const glm::vec3& next) const;
 
 private:
     // Raster position (x right, y up, pixels) of world point `p` seen by the camera whose world-to-camera matrix is

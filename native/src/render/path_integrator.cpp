@@ -34,9 +34,9 @@ void add_to_lobes(std::array<glm::vec3, kLightPassCount>& passes, const glm::vec
 inline Surface PathIntegrator::surface(const Segment& seg, const Ray& ray) const {
     const MeshRecord& m = *s_.meshes[s_.top[seg.top_geom].index];
     const std::uint32_t* idx = m.desc.indices + 3 * std::size_t(seg.prim);
-    const float* vd = m.vertex_data();
-    auto vtx = [&](std::uint32_t i) { return glm::vec3(vd[3 * i], vd[3 * i + 1], vd[3 * i + 2]); };
-    const glm::vec3 v0 = vtx(idx[0]), v1 = vtx(idx[1]), v2 = vtx(idx[2]);
+    // (With deformation, the triangle where the ray's time puts it: the geometric normal turns with it.)
+    const glm::vec3 v0 = m.vertex_at(idx[0], ray.time), v1 = m.vertex_at(idx[1], ray.time),
+                    v2 = m.vertex_at(idx[2], ray.time);
     Surface sf;
     sf.p = ray.o + seg.t * ray.d;
     const glm::mat3 normal_matrix = m.normal_matrix_at(ray.time);
@@ -120,6 +120,10 @@ struct PathIntegrator::PathState {
     glm::vec3 position{0.0f};  // the data passes at the depth (SampleRecord)
     float object_index = 0.0f, material_index = 0.0f;
     const FrameMotion* depth_motion = nullptr;  // how the depth's object moves between frames (the Vector pass)
+    // A deforming mesh's depth point at the previous and the next frame (world), when depth_deformed (the Vector
+    // pass; Scene::set_mesh_frame_deformation).
+    bool depth_deformed = false;
+    glm::vec3 depth_previous{0.0f}, depth_next{0.0f};
     // The Mist pass's sum (SampleRecord::mist) and the camera ray's transmittance in front of the current segment
     // (surfaces it passed through stochastically).
     float mist_clearance = 0.0f, camera_transmittance = 1.0f;
@@ -264,6 +268,7 @@ float PathIntegrator::add_gaussians(PathState& p, Segment& seg) const {
             p.position = p.ray.o + seg.depth * p.ray.d;
             if (seg.depth_set) {
                 p.depth_motion = &seg.depth_set->frame_motion;
+                p.depth_deformed = false;
                 p.object_index = float(seg.depth_set->object_pass_index);
                 p.material_index = float(seg.depth_set->material_pass_index);
             }
@@ -391,6 +396,22 @@ void PathIntegrator::mesh_data_passes(PathState& p, const Segment& seg, const Su
     const MeshRecord& mesh = *s_.meshes[s_.top[seg.top_geom].index];
     p.object_index = float(mesh.desc.pass_index);
     p.depth_motion = &mesh.frame_motion;
+    p.depth_deformed = !mesh.frame_previous.empty();
+    if (p.depth_deformed) {
+        // The point of the same triangle and barycentric coordinates at each frame, placed by that frame's matrix
+        // (M_frame = to_frame M, FrameMotion).
+        const std::uint32_t* idx = mesh.desc.indices + 3 * std::size_t(seg.prim);
+        const float b[3] = {1.0f - seg.u - seg.v, seg.u, seg.v};
+        auto at_frame = [&](const std::vector<float>& vertices, const glm::mat4& to_frame) {
+            glm::vec3 local(0.0f);
+            for (int k = 0; k < 3; ++k)
+                local += b[k] * glm::vec3(vertices[3 * idx[k]], vertices[3 * idx[k] + 1], vertices[3 * idx[k] + 2]);
+            return glm::vec3(to_frame * glm::vec4(mesh.linear * local + mesh.translation, 1.0f));
+        };
+        const bool moves = mesh.frame_motion.set;
+        p.depth_previous = at_frame(mesh.frame_previous, moves ? mesh.frame_motion.to_previous : glm::mat4(1.0f));
+        p.depth_next = at_frame(mesh.frame_next, moves ? mesh.frame_motion.to_next : glm::mat4(1.0f));
+    }
     p.material_index = s_.materials.empty() ? 0.0f : float(s_.materials[sf.material].pass_index);
     p.normal_at_mesh = false;
 }
@@ -617,7 +638,9 @@ SampleRecord PathIntegrator::sample_record(PathState& p) const {
     record.position = {p.position.x, p.position.y, p.position.z};
     record.object_index = p.object_index;
     record.material_index = p.material_index;
-    if (p.depth < kInf && vectors_.active()) record.vector = vectors_.vector(p.position, p.depth_motion);
+    if (p.depth < kInf && vectors_.active())
+        record.vector = p.depth_deformed ? vectors_.vector_between(p.position, p.depth_previous, p.depth_next)
+                                         : vectors_.vector(p.position, p.depth_motion);
     record.mist = 1.0f - p.mist_clearance;
     record.denoising_albedo = {p.guide_albedo.x, p.guide_albedo.y, p.guide_albedo.z};
     record.denoising_normal = {p.guide_normal.x, p.guide_normal.y, p.guide_normal.z};

@@ -10,6 +10,7 @@
 #include <iterator>
 #include <string>
 
+#include "core/linear_algebra.h"
 #include "gaussian_callbacks.h"
 #include "microfacet_tables.h"
 #include "raysplats/errors.h"
@@ -214,8 +215,19 @@ void set_triangle_buffers(RTCGeometry tri, const MeshRecord& m) {
     // The caller's arrays go to Embree as shared buffers: no copy (the padded copy only if needed). Embree's
     // contract for shared vertex buffers: readable with a 16-byte load at the last vertex, so 4 bytes past its end
     // (MeshDesc::vertices_padded); the buffers must outlive the geometry (the Scene's lifetime rule).
-    rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.vertex_data(), 0,
-                               3 * sizeof(float), m.desc.vertex_count);
+    if (m.deformation_steps >= 2) {
+        // Deformation: one vertex buffer per time step (slot k = step k), which Embree interpolates linearly at a
+        // ray's time, the first step at time 0 and the last at 1 (rtcSetGeometryTimeStepCount).
+        rtcSetGeometryTimeStepCount(tri, unsigned(m.deformation_steps));
+        for (std::size_t k = 0; k < m.deformation_steps; ++k)
+            rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, unsigned(k), RTC_FORMAT_FLOAT3,
+                                       m.deformation.data(), 3 * sizeof(float) * k * m.desc.vertex_count,
+                                       3 * sizeof(float), m.desc.vertex_count);
+    } else {
+        rtcSetGeometryTimeStepCount(tri, 1);  // (Embree's default; an update may drop a deformation)
+        rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.vertex_data(), 0,
+                                   3 * sizeof(float), m.desc.vertex_count);
+    }
     rtcSetSharedGeometryBuffer(tri, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.desc.indices, 0,
                                3 * sizeof(std::uint32_t), m.desc.triangle_count);
 }
@@ -259,6 +271,7 @@ void Scene::update_gaussians(std::uint32_t index, const GaussianCloud& cloud, co
     set.cloud = &cloud;
     set.set_transform(object_to_world);
     set.frame_motion = FrameMotion{};
+    set.deformation = GaussianSet::Deformation{};
     set.dirty = GaussianSet::Dirty::Data;
 }
 
@@ -311,6 +324,128 @@ void Scene::set_mesh_motion(std::uint32_t index, const std::vector<Matrix4>& obj
     impl_->built = false;
 }
 
+void Scene::set_mesh_deformation(std::uint32_t index, const float* step_vertices, std::size_t step_count,
+                                 std::size_t vertex_count) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    MeshRecord& m = *impl_->meshes[index];
+    const std::string name = at("mesh", index);
+    if (step_count > RTC_MAX_TIME_STEP_COUNT)
+        throw InvalidArgument(name + ": " + std::to_string(step_count) + " deformation steps (at most " +
+                              std::to_string(RTC_MAX_TIME_STEP_COUNT) + ")");
+    if (step_count >= 2 && !step_vertices) throw InvalidArgument(name + ": the deformation's vertex array is null");
+    if (step_count >= 2 && vertex_count != m.desc.vertex_count)
+        throw InvalidArgument(name + ": a deformation of " + std::to_string(vertex_count) + " vertices (the mesh has " +
+                              std::to_string(m.desc.vertex_count) + ")");
+    const std::size_t values = step_count >= 2 ? 3 * step_count * m.desc.vertex_count : 0;
+    for (std::size_t i = 0; i < values; ++i)
+        if (!std::isfinite(step_vertices[i]))
+            throw InvalidArgument(name + ": deformation step " + std::to_string(i / (3 * m.desc.vertex_count)) +
+                                  " vertex " + std::to_string(i / 3 % m.desc.vertex_count) +
+                                  " has a NaN or Inf coordinate");
+    if (values == 0 && m.deformation_steps < 2) return;
+    if (values != 0 && step_count == m.deformation_steps &&
+        std::equal(step_vertices, step_vertices + values, m.deformation.begin()))
+        return;
+    m.deformation.clear();
+    m.deformation_steps = 0;
+    if (values != 0) {
+        m.deformation.assign(step_vertices, step_vertices + values);
+        m.deformation.push_back(0.0f);
+        m.deformation_steps = step_count;
+    }
+    impl_->built = false;
+}
+
+namespace {
+
+// One Gaussian is the same for any order and signs of its axes (its scales taken in that order), and recovery may
+// name a Gaussian's axes differently at two steps (exactly at its imported polygon, by moments elsewhere). Rewrites
+// rotation `q` (unit, w x y z) and `scales` to the order and signs of the axes nearest those of the previous step's
+// rotation `previous`, as a proper rotation, so that interpolating between the steps turns each axis the short way
+// and keeps each scale on its axis.
+void align_axes(const float* previous, glm::vec4& q, float* scales) {
+    const la::Mat3 before = la::quaternion_to_matrix(previous[0], previous[1], previous[2], previous[3]);
+    const la::Mat3 now = la::quaternion_to_matrix(q[0], q[1], q[2], q[3]);
+    static const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    int best = 0;
+    double best_match = -1.0;
+    for (int o = 0; o < 6; ++o) {
+        double match = 0.0;
+        for (int j = 0; j < 3; ++j) match += std::abs(la::dot(before.column(j), now.column(orders[o][j])));
+        if (match > best_match) best_match = match, best = o;
+    }
+    la::Mat3 aligned;
+    int weakest = 0;
+    double weakest_dot = 2.0;
+    for (int j = 0; j < 3; ++j) {
+        const la::Vec3 axis = now.column(orders[best][j]);
+        const double along = la::dot(before.column(j), axis);
+        aligned.set_column(j, along < 0.0 ? -axis : axis);
+        if (std::abs(along) < weakest_dot) weakest_dot = std::abs(along), weakest = j;
+    }
+    if (la::determinant(aligned) < 0.0) aligned.set_column(weakest, -aligned.column(weakest));
+    double aligned_q[4];
+    la::matrix_to_quaternion(aligned, aligned_q);
+    q = glm::vec4(float(aligned_q[0]), float(aligned_q[1]), float(aligned_q[2]), float(aligned_q[3]));
+    const float s[3] = {scales[0], scales[1], scales[2]};
+    for (int j = 0; j < 3; ++j) scales[j] = s[orders[best][j]];
+}
+
+}  // namespace
+
+void Scene::set_gaussians_deformation(std::uint32_t index, std::size_t step_count, const float* positions,
+                                      const float* rotations, const float* scales, std::size_t gaussian_count) {
+    if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
+    GaussianSet& set = *impl_->gaussians[index];
+    const std::string name = at("Gaussian cloud", index);
+    const std::size_t n = set.cloud->size();
+    if (step_count > RTC_MAX_TIME_STEP_COUNT)
+        throw InvalidArgument(name + ": " + std::to_string(step_count) + " deformation steps (at most " +
+                              std::to_string(RTC_MAX_TIME_STEP_COUNT) + ")");
+    GaussianSet::Deformation d;
+    if (step_count >= 2) {
+        if (!positions || !rotations || !scales) throw InvalidArgument(name + ": a deformation array is null");
+        if (gaussian_count != n)
+            throw InvalidArgument(name + ": a deformation of " + std::to_string(gaussian_count) +
+                                  " Gaussians (the cloud has " + std::to_string(n) + ")");
+        d.steps = step_count;
+        d.positions.assign(positions, positions + 3 * step_count * n);
+        d.scales.assign(scales, scales + 3 * step_count * n);
+        d.rotations.resize(4 * step_count * n);
+        for (std::size_t k = 0; k < step_count; ++k)
+            for (std::size_t i = 0; i < n; ++i) {
+                const std::size_t at_step = k * n + i;
+                auto fail = [&](const char* what) {
+                    throw InvalidArgument(name + ": deformation step " + std::to_string(k) + " Gaussian " +
+                                          std::to_string(i) + " " + what);
+                };
+                for (int a = 0; a < 3; ++a) {
+                    if (!std::isfinite(d.positions[3 * at_step + a]) || !std::isfinite(d.scales[3 * at_step + a]))
+                        fail("has a NaN or Inf position or scale");
+                    if (d.scales[3 * at_step + a] < 0.0f) fail("has a negative scale");
+                }
+                glm::vec4 q(rotations[4 * at_step], rotations[4 * at_step + 1], rotations[4 * at_step + 2],
+                            rotations[4 * at_step + 3]);
+                const float length = glm::length(q);
+                if (!std::isfinite(length) || length == 0.0f) fail("has a zero, NaN or Inf rotation");
+                q /= length;
+                if (k > 0) {
+                    const float* p = &d.rotations[4 * (at_step - n)];
+                    align_axes(p, q, &d.scales[3 * at_step]);
+                    // q and -q are one rotation: the one nearer the previous step's, so that interpolating between
+                    // them turns the short way (GaussianSet::deformed_group).
+                    if (p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3] < 0.0f) q = -q;
+                }
+                for (int a = 0; a < 4; ++a) d.rotations[4 * at_step + a] = q[a];
+            }
+    }
+    if (d.steps == set.deformation.steps && d.positions == set.deformation.positions &&
+        d.rotations == set.deformation.rotations && d.scales == set.deformation.scales)
+        return;
+    set.deformation = std::move(d);
+    impl_->built = false;
+}
+
 void Scene::set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps) {
     if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
     GaussianSet& set = *impl_->gaussians[index];
@@ -328,6 +463,27 @@ void Scene::set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, 
     m.frame_motion = FrameMotion::between(m.desc.object_to_world, previous, next);
 }
 
+void Scene::set_mesh_frame_deformation(std::uint32_t index, const float* previous, const float* next,
+                                       std::size_t vertex_count) {
+    if (index >= impl_->meshes.size()) throw InvalidArgument(at("mesh", index) + " does not exist");
+    MeshRecord& m = *impl_->meshes[index];
+    const std::string name = at("mesh", index);
+    if (!previous || !next) {
+        m.frame_previous.clear();
+        m.frame_next.clear();
+        return;
+    }
+    if (vertex_count != m.desc.vertex_count)
+        throw InvalidArgument(name + ": a frame deformation of " + std::to_string(vertex_count) +
+                              " vertices (the mesh has " + std::to_string(m.desc.vertex_count) + ")");
+    for (std::size_t i = 0; i < 3 * vertex_count; ++i)
+        if (!std::isfinite(previous[i]) || !std::isfinite(next[i]))
+            throw InvalidArgument(name + ": frame deformation vertex " + std::to_string(i / 3) +
+                                  " has a NaN or Inf coordinate");
+    m.frame_previous.assign(previous, previous + 3 * vertex_count);
+    m.frame_next.assign(next, next + 3 * vertex_count);
+}
+
 void Scene::set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next) {
     if (index >= impl_->gaussians.size()) throw InvalidArgument(at("Gaussian cloud", index) + " does not exist");
     previous.check_affine((at("Gaussian cloud", index) + " previous frame's matrix").c_str());
@@ -337,8 +493,10 @@ void Scene::set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previ
 }
 
 bool Scene::Impl::has_motion() const {
-    return std::any_of(meshes.begin(), meshes.end(), [](const auto& m) { return !m->motion.empty(); }) ||
-           std::any_of(gaussians.begin(), gaussians.end(), [](const auto& g) { return !g->motion.empty(); });
+    return std::any_of(meshes.begin(), meshes.end(),
+                       [](const auto& m) { return !m->motion.empty() || m->deformation_steps >= 2; }) ||
+           std::any_of(gaussians.begin(), gaussians.end(),
+                       [](const auto& g) { return !g->motion.empty() || g->deformation.steps >= 2; });
 }
 
 bool Scene::has_motion() const { return impl_->has_motion(); }

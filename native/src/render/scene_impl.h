@@ -29,11 +29,31 @@ struct MeshRecord {
     // Scene::set_mesh_motion's matrices (empty: none), and their linear parts for the normals at a ray's time.
     std::vector<Matrix4> motion;
     std::vector<glm::mat3> motion_linear;
+    // Scene::set_mesh_deformation's vertex positions, step after step, and one float more (Embree's 16-byte loads
+    // at a step's last vertex read the next step's first or this padding); empty: none.
+    std::vector<float> deformation;
+    std::size_t deformation_steps = 0;
     FrameMotion frame_motion;  // Scene::set_mesh_frame_motion's (the Vector pass)
+    // Scene::set_mesh_frame_deformation's vertices at the previous and the next frame (empty: none).
+    std::vector<float> frame_previous, frame_next;
     // Scene::set_mesh_cryptomatte_names (kept by update_mesh): the object's and the asset's Cryptomatte ids.
     float cryptomatte_object = 0.0f, cryptomatte_asset = 0.0f;
 
     const float* vertex_data() const { return padded_vertices.empty() ? desc.vertices : padded_vertices.data(); }
+    // Vertex `i` where a ray of shutter time `time` sees it (object space): with deformation, the linear
+    // interpolation of the two nearest steps, as Embree interpolates a geometry's time steps; else the frame's.
+    glm::vec3 vertex_at(std::uint32_t i, float time) const {
+        if (deformation_steps < 2) {
+            const float* v = vertex_data() + 3 * std::size_t(i);
+            return {v[0], v[1], v[2]};
+        }
+        const float f = glm::clamp(time, 0.0f, 1.0f) * float(deformation_steps - 1);
+        const std::size_t k = std::min(std::size_t(f), deformation_steps - 2);
+        const float w = f - float(k);
+        const float* a = deformation.data() + 3 * (k * desc.vertex_count + i);
+        const float* b = a + 3 * desc.vertex_count;
+        return (1.0f - w) * glm::vec3(a[0], a[1], a[2]) + w * glm::vec3(b[0], b[1], b[2]);
+    }
     // The normal matrix where a ray of shutter time `time` sees the mesh: with motion, the inverse transpose of the
     // linear part Embree's linear interpolation of the two nearest steps gives; else normal_matrix.
     glm::mat3 normal_matrix_at(float time) const {

@@ -131,13 +131,41 @@ public:
     // Validated as object_to_world; a change of motion makes the next build a full one.
     void set_mesh_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
     void set_gaussians_motion(std::uint32_t index, const std::vector<Matrix4>& object_to_world_steps);
+    // Deformation blur: mesh `index`'s vertex positions (object space, as MeshDesc::vertices) at `step_count` equally
+    // spaced times across the shutter, from its opening to its closing (step_count * vertex_count * 3 floats, step
+    // after step; copied; vertex_count must be the mesh's). A ray of time t sees each vertex where Embree's linear interpolation of the two nearest
+    // steps puts it (rtcSetGeometryTimeStepCount on the triangles, one vertex buffer per step), inside the
+    // object's own motion (set_mesh_motion), and shading interpolates the triangle the same way (its geometric
+    // normal; MeshDesc::normals stay the frame's). step_count 0 (or 1): none, the frame's vertices. At most 129
+    // steps; a NaN or Inf position is an InvalidArgument. A change makes the next build a full one; update_mesh
+    // drops it.
+    void set_mesh_deformation(std::uint32_t index, const float* step_vertices, std::size_t step_count,
+                              std::size_t vertex_count);
+    // Deformation blur of Gaussian cloud `index`: its Gaussians (in the cloud's order and frame, gaussian_count of
+    // them, the cloud's count) at `step_count` equally spaced times across the shutter, step after step: centres
+    // (3 floats each), rotations (quaternions w x y z, 4) and scales (3); copied. A ray of time t sees each Gaussian
+    // interpolated between the two steps around t (centre and scales linearly, rotation by normalised linear
+    // interpolation), inside the cloud's own motion (set_gaussians_motion); its opacity and colours, and what
+    // shading takes from it (view direction, normal, shadow origin), stay the cloud's. step_count 0 (or 1): none. At
+    // most 129 steps; NaN or Inf, a negative scale or a zero quaternion is an InvalidArgument. A change makes the
+    // next build a full one; update_gaussians drops it.
+    void set_gaussians_deformation(std::uint32_t index, std::size_t step_count, const float* positions,
+                                   const float* rotations, const float* scales, std::size_t gaussian_count);
     // The Vector pass: where mesh or Gaussian cloud `index` was at the previous frame and will be at the next (its
     // object_to_world then), for the motion of its surface points (film.h, SampleRecord::vector); an object without
     // them is still. Forgotten when the object's matrix or data is replaced (update_*, set_gaussians_transform). No
     // rebuild is needed.
     void set_mesh_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
+    // The Vector pass of a deforming mesh: its vertex positions (object space, vertex_count * 3 floats each, copied;
+    // vertex_count must be the mesh's) at the previous and at the next frame, placed by set_mesh_frame_motion's
+    // matrices (the frame's object_to_world without them): a surface point moves as the point of the same triangle
+    // and barycentric coordinates does, as Cycles' motion pass takes a deforming mesh's vertex motion. Null: none
+    // (the object's matrices alone). NaN or Inf is an InvalidArgument; update_mesh drops them.
+    void set_mesh_frame_deformation(std::uint32_t index, const float* previous, const float* next,
+                                    std::size_t vertex_count);
     void set_gaussians_frame_motion(std::uint32_t index, const Matrix4& previous, const Matrix4& next);
-    // Whether some object has motion (set_*_motion with two matrices or more).
+    // Whether some object has motion (set_*_motion with two matrices or more, set_*_deformation with two steps or
+    // more).
     bool has_motion() const;
     // The names whose ids the Cryptomatte passes give (raysplats/render/cryptomatte.h; "" gives none): Gaussian cloud
     // `index`'s object, the material its Gaussians count as (the add-on gives its object's first material, as for the
