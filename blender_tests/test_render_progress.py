@@ -10,16 +10,21 @@ import bpy
 import numpy as np
 
 import splat_testing as st
+from raysplats.blender import compat
 from raysplats.engine import final, sync
 
 DONUT = "donut_sh0.ply"
 
 
 class _Rect(np.ndarray):
-    """A pass's pixels, written as Blender's RenderPass.rect is: assigned, or in bulk by foreach_set (4.2 and later)."""
+    """A pass's pixels, written as Blender's RenderPass.rect is: in bulk by foreach_set, which checks the buffer's
+    length against the pass's values from 4.2 on and against its pixels before (compat.RENDER_PASS_BUFFER_IS_FLAT)."""
 
     def foreach_set(self, values):
-        self.reshape(-1)[:] = values
+        expected = self.size if compat.RENDER_PASS_BUFFER_IS_FLAT else self.shape[0]
+        if len(values) != expected:
+            raise TypeError(f"expected sequence size {expected}, got {len(values)}")
+        self.reshape(-1)[:] = np.asarray(values).reshape(-1)
 
 
 class _Pass:
