@@ -74,6 +74,20 @@ def bar_scene(name):
     return scene, still
 
 
+def assert_smear(test, label, still, moving, shutter):
+    """Asserts that `moving` (spread_x of a render blurred over `shutter` frames) is `still` smeared over SPEED x
+    shutter: variance growth (within 3 %) and total (within 1.5 %); returns the smear in pixels."""
+    smear = SPEED * shutter * PIXELS_PER_UNIT
+    growth = moving[2] - still[2]
+    print(f"\n{label}, Blender {bpy.app.version_string}, shutter {shutter}: variance growth {growth:.2f} px^2 (smear "
+          f"{smear:.0f} px: {smear ** 2 / 12:.2f}), total {moving[0]:.2f} (still {still[0]:.2f}), centre "
+          f"{moving[1] - still[1]:+.2f} px")
+    test.assertGreater(still[0], 1.0, "the object is in view")
+    test.assertAlmostEqual(growth, smear ** 2 / 12, delta=0.03 * smear ** 2 / 12)
+    test.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+    return smear
+
+
 class MovingBar(unittest.TestCase):
     def test_smear_is_speed_times_shutter_at_every_position(self):
         scene, still = bar_scene("motion_bar_still")
@@ -81,13 +95,7 @@ class MovingBar(unittest.TestCase):
             scene.render.motion_blur_shutter = shutter
             motion_blur.position_settings(scene).motion_blur_position = position
             moving = spread_x(st.render_to_array(f"motion_bar_{position.lower()}"))
-            smear = SPEED * shutter * PIXELS_PER_UNIT
-            growth = moving[2] - still[2]
-            print(f"\nMoving bar, Blender {bpy.app.version_string}, shutter {shutter} {position}: variance growth "
-                  f"{growth:.2f} px^2 (smear {smear:.0f} px: {smear ** 2 / 12:.2f}), total {moving[0]:.2f} "
-                  f"(still {still[0]:.2f}), centre {moving[1] - still[1]:+.2f} px (expected {shift * smear:+.1f})")
-            self.assertAlmostEqual(growth, smear ** 2 / 12, delta=0.03 * smear ** 2 / 12)
-            self.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+            smear = assert_smear(self, f"Moving bar, {position}", still, moving, shutter)
             self.assertAlmostEqual(moving[1] - still[1], shift * smear, delta=0.3)
         self.assertEqual(scene.frame_current, 5)
         self.assertEqual(scene.frame_subframe, 0.0)
@@ -185,17 +193,9 @@ class MovingSplats(unittest.TestCase):
             scene.render.use_motion_blur = True
             scene.render.motion_blur_shutter = 0.5
             image = st.render_to_array(f"motion_splats_{kind.lower()}")
-            moving = spread_x(image)
-            smear = SPEED * 0.5 * PIXELS_PER_UNIT
-            growth = moving[2] - still[2]
-            print(f"\nMoving splats ({kind}), Blender {bpy.app.version_string}: variance {still[2]:.1f} px^2 still, "
-                  f"growth {growth:.2f} (smear {smear:.0f} px: {smear ** 2 / 12:.2f}), total {moving[0]:.2f} "
-                  f"(still {still[0]:.2f})")
-            self.assertGreater(still[0], 1.0, "the splats are in view")
             edges = image[:, :4, :3].sum() + image[:, -4:, :3].sum()
             self.assertLess(edges, 1e-3 * still[0], "the smear stays inside the frame")
-            self.assertAlmostEqual(growth, smear ** 2 / 12, delta=0.03 * smear ** 2 / 12)
-            self.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+            assert_smear(self, f"Moving splats ({kind})", still, spread_x(image), 0.5)
 
     def test_camera_rays_as_splats_steps_aside_and_says_so(self):
         scene = ortho_scene(4)
@@ -234,26 +234,58 @@ class Panels(unittest.TestCase):
                       {owner for owner, name, _ in drawn if name == "motion_blur_position"})
 
 
-def cycles_scene():
-    """Emissive cubes on a dark world: one moving along +X, one still, seen by a perspective camera moving along +X and
-    -Z (towards them) while turning about its view axis (the still cube smeared by the camera alone, about 8 px);
-    frame 5."""
+def emissive_cubes_scene(location):
+    """Emissive cubes on a dark world, 160 x 120: an orange one (returned) at `location`, a still blue one, and a 35 mm
+    perspective camera (returned, unplaced)."""
     scene = st.reset_render_scene(160, 120, CYCLES_SAMPLES)
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.use_nodes = False
     st.set_world_color(world, (0.02, 0.02, 0.02))
     scene.world = world
-    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.0))
-    moving = bpy.context.object
-    moving.data.materials.append(st.emission_material("Moving", (0.9, 0.4, 0.1)))
-    slide(moving, 0.5)
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=location)
+    cube = bpy.context.object
+    cube.data.materials.append(st.emission_material("Moving", (0.9, 0.4, 0.1)))
     bpy.ops.mesh.primitive_cube_add(size=0.6, location=(1.2, 0.6, -0.5))
     bpy.context.object.data.materials.append(st.emission_material("Still", (0.1, 0.5, 0.9)))
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
     scene.camera = camera
     camera.data.lens = 35.0
+    return scene, cube, camera
+
+
+def assert_blur_agrees_with_cycles(test, scene, label, unblur):
+    """Renders `scene` with Cycles and RaySplats (CYCLES_SAMPLES, direct light only) and asserts their mean absolute
+    difference is within CYCLES_TOLERANCE of the mean pixel, and that RaySplats after `unblur()` differs from Cycles'
+    blurred image by more than twice that (the blur is what makes them agree)."""
+    scene.render.engine = "CYCLES"
+    st.use_cycles_on_cpu(scene, CYCLES_SAMPLES).max_bounces = 0
+    name = label.lower().replace(" ", "_")
+    cycles = st.render_to_array(f"{name}_cycles")[..., :3].astype(np.float64)
+    scene.render.engine = "RAYSPLATS"
+    scene.raysplats.samples = CYCLES_SAMPLES
+    scene.raysplats.use_adaptive_sampling = False
+    scene.raysplats.max_bounces = 0
+    scene.raysplats.seed = 1
+    raysplats = st.render_to_array(f"{name}_raysplats")[..., :3].astype(np.float64)
+    mad = np.abs(raysplats - cycles).mean() / cycles.mean()
+    unblur()
+    sharp = st.render_to_array(f"{name}_raysplats_sharp")[..., :3].astype(np.float64)
+    sharp_mad = np.abs(sharp - cycles).mean() / cycles.mean()
+    print(f"\n{label} against Cycles, Blender {bpy.app.version_string} (160x120, {CYCLES_SAMPLES} spp): mean "
+          f"|difference| {100 * mad:.2f} % of the mean pixel (limit {100 * CYCLES_TOLERANCE:.1f} %); without it "
+          f"{100 * sharp_mad:.2f} %")
+    test.assertLessEqual(mad, CYCLES_TOLERANCE)
+    test.assertGreater(sharp_mad, 2 * mad, "the blur is what makes them agree")
+
+
+def cycles_scene():
+    """Emissive cubes on a dark world: one moving along +X, one still, seen by a perspective camera moving along +X and
+    -Z (towards them) while turning about its view axis (the still cube smeared by the camera alone, about 8 px);
+    frame 5."""
+    scene, moving, camera = emissive_cubes_scene((0.0, 0.0, 0.0))
+    slide(moving, 0.5)
     st.drive(camera, "location", 0, "(frame - 5) * 0.4")
     st.drive(camera, "location", 2, "8 - (frame - 5) * 0.25")
     st.drive(camera, "rotation_euler", 2, "(frame - 5) * 0.1")
@@ -266,24 +298,8 @@ def cycles_scene():
 class AgainstCycles(unittest.TestCase):
     def test_moving_object_and_camera_agree_with_cycles(self):
         scene = cycles_scene()
-        scene.render.engine = "CYCLES"
-        st.use_cycles_on_cpu(scene, CYCLES_SAMPLES).max_bounces = 0
-        cycles = st.render_to_array("motion_cycles")[..., :3].astype(np.float64)
-        scene.render.engine = "RAYSPLATS"
-        scene.raysplats.samples = CYCLES_SAMPLES
-        scene.raysplats.use_adaptive_sampling = False
-        scene.raysplats.max_bounces = 0
-        scene.raysplats.seed = 1
-        raysplats = st.render_to_array("motion_raysplats")[..., :3].astype(np.float64)
-        mad = np.abs(raysplats - cycles).mean() / cycles.mean()
-        scene.render.use_motion_blur = False
-        sharp = st.render_to_array("motion_raysplats_sharp")[..., :3].astype(np.float64)
-        sharp_mad = np.abs(sharp - cycles).mean() / cycles.mean()
-        print(f"\nMotion blur against Cycles, Blender {bpy.app.version_string} (160x120, {CYCLES_SAMPLES} spp): mean "
-              f"|difference| {100 * mad:.2f} % of the mean pixel (limit {100 * CYCLES_TOLERANCE:.1f} %); without "
-              f"motion blur {100 * sharp_mad:.2f} %")
-        self.assertLessEqual(mad, CYCLES_TOLERANCE)
-        self.assertGreater(sharp_mad, 2 * mad, "the blur is what makes them agree")
+        assert_blur_agrees_with_cycles(self, scene, "Motion blur",
+                                       lambda: setattr(scene.render, "use_motion_blur", False))
 
 
 if __name__ == "__main__":

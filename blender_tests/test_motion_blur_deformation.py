@@ -21,7 +21,8 @@ import numpy as np
 
 import splat_testing as st
 from raysplats.engine import final, motion_blur, sync, ui
-from test_motion_blur import CYCLES_SAMPLES, CYCLES_TOLERANCE, PIXELS_PER_UNIT, SPEED, ortho_scene, spread_x
+from test_motion_blur import (PIXELS_PER_UNIT, SPEED, assert_blur_agrees_with_cycles, assert_smear, emissive_cubes_scene,
+                               ortho_scene, spread_x)
 from test_vector_pass import base_scene, vector_and_position
 
 SHUTTER = 0.5
@@ -81,14 +82,7 @@ class DeformedBar(unittest.TestCase):
         scene.render.use_motion_blur = True
         scene.render.motion_blur_shutter = SHUTTER
         moving = spread_x(st.render_to_array(f"deform_{name}_blurred"))
-        smear = SPEED * SHUTTER * PIXELS_PER_UNIT
-        growth = moving[2] - still[2]
-        print(f"\nDeformed bar ({name}), Blender {bpy.app.version_string}, shutter {SHUTTER}: variance growth "
-              f"{growth:.2f} px^2 (smear {smear:.0f} px: {smear ** 2 / 12:.2f}), total {moving[0]:.2f} "
-              f"(still {still[0]:.2f})")
-        self.assertGreater(still[0], 1.0, "the bar is in view")
-        self.assertAlmostEqual(growth, smear ** 2 / 12, delta=0.03 * smear ** 2 / 12)
-        self.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+        assert_smear(self, f"Deformed bar ({name})", still, moving, SHUTTER)
         self.assertAlmostEqual(moving[1], still[1], delta=0.3)
         self.assertEqual((scene.frame_current, scene.frame_subframe), (5, 0.0))
         return scene, bar
@@ -142,17 +136,9 @@ class DeformedSplats(unittest.TestCase):
         scene.render.use_motion_blur = True
         scene.render.motion_blur_shutter = SHUTTER
         image = st.render_to_array("deform_splats_blurred")
-        moving = spread_x(image)
-        smear = SPEED * SHUTTER * PIXELS_PER_UNIT
-        growth = moving[2] - still[2]
-        print(f"\nDeformed splats (shape key), Blender {bpy.app.version_string}: variance {still[2]:.1f} px^2 still, "
-              f"growth {growth:.2f} (smear {smear:.0f} px: {smear ** 2 / 12:.2f}), total {moving[0]:.2f} "
-              f"(still {still[0]:.2f})")
-        self.assertGreater(still[0], 1.0, "the splats are in view")
         edges = image[:, :4, :3].sum() + image[:, -4:, :3].sum()
         self.assertLess(edges, 1e-3 * still[0], "the smear stays inside the frame")
-        self.assertAlmostEqual(growth, smear ** 2 / 12, delta=0.03 * smear ** 2 / 12)
-        self.assertAlmostEqual(moving[0], still[0], delta=0.015 * still[0])
+        assert_smear(self, "Deformed splats (shape key)", still, spread_x(image), SHUTTER)
         # One frame per seed; Deformation off: the still image, bit for bit.
         scene.raysplats.samples = 8
         blurred = st.render_to_array("deform_splats_seed")
@@ -302,27 +288,13 @@ class Panel(unittest.TestCase):
 def sheared_cube_scene():
     """Emissive cubes on a dark world seen from above by a perspective camera: one whose top is sheared along +X by an
     animated shape key (0.6 units per frame at its top face), one still; frame 5, shutter 1."""
-    scene = st.reset_render_scene(160, 120, CYCLES_SAMPLES)
-    scene.view_settings.view_transform = "Standard"
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = False
-    st.set_world_color(world, (0.02, 0.02, 0.02))
-    scene.world = world
-    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(-0.6, 0.0, 0.0))
-    sheared = bpy.context.object
-    sheared.data.materials.append(st.emission_material("Sheared", (0.9, 0.4, 0.1)))
+    scene, sheared, camera = emissive_cubes_scene((-0.6, 0.0, 0.0))
     sheared.shape_key_add(name="Basis")
     key = sheared.shape_key_add(name="Shear")
     for point in key.data:
         point.co.x += point.co.z + 0.4  # 0 at the bottom face, 0.8 at the top
     key.slider_min, key.slider_max = -10.0, 10.0
     st.drive(sheared.data.shape_keys, 'key_blocks["Shear"].value', -1, "0.5 + (frame - 5) * 0.75")
-    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(1.2, 0.6, -0.5))
-    bpy.context.object.data.materials.append(st.emission_material("Still", (0.1, 0.5, 0.9)))
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    camera.data.lens = 35.0
     camera.location = (0.0, 0.0, 6.0)
     scene.frame_set(5)
     scene.render.use_motion_blur = True
@@ -333,24 +305,8 @@ def sheared_cube_scene():
 class AgainstCycles(unittest.TestCase):
     def test_shape_key_deformation_agrees_with_cycles(self):
         scene, sheared = sheared_cube_scene()
-        scene.render.engine = "CYCLES"
-        st.use_cycles_on_cpu(scene, CYCLES_SAMPLES).max_bounces = 0
-        cycles = st.render_to_array("deform_cycles")[..., :3].astype(np.float64)
-        scene.render.engine = "RAYSPLATS"
-        scene.raysplats.samples = CYCLES_SAMPLES
-        scene.raysplats.use_adaptive_sampling = False
-        scene.raysplats.max_bounces = 0
-        scene.raysplats.seed = 1
-        raysplats = st.render_to_array("deform_raysplats")[..., :3].astype(np.float64)
-        mad = np.abs(raysplats - cycles).mean() / cycles.mean()
-        sheared.cycles.use_deform_motion = False
-        sharp = st.render_to_array("deform_raysplats_sharp")[..., :3].astype(np.float64)
-        sharp_mad = np.abs(sharp - cycles).mean() / cycles.mean()
-        print(f"\nDeformation blur against Cycles, Blender {bpy.app.version_string} (160x120, {CYCLES_SAMPLES} spp): "
-              f"mean |difference| {100 * mad:.2f} % of the mean pixel (limit {100 * CYCLES_TOLERANCE:.1f} %); "
-              f"without deformation blur {100 * sharp_mad:.2f} %")
-        self.assertLessEqual(mad, CYCLES_TOLERANCE)
-        self.assertGreater(sharp_mad, 2 * mad, "the deformation blur is what makes them agree")
+        assert_blur_agrees_with_cycles(self, scene, "Deformation blur",
+                                       lambda: setattr(sheared.cycles, "use_deform_motion", False))
 
 
 if __name__ == "__main__":
