@@ -8,9 +8,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
+#include <random>
 #include <vector>
 
 #include "raysplats/render/renderer.h"
+#include "render/camera_splat_prepass.h"
 #include "render_test_util.h"
 
 using namespace raysplats;
@@ -169,6 +172,61 @@ TEST(CameraSplatting, ThinGaussiansBinOnlyWhereTheyShow) {
             checked += expected > 0.0;
         }
     EXPECT_GT(checked, 300);
+}
+
+// The binning finds a row of tiles from the ellipse's extent within the row's band (SplatEllipse::row_extent). Against
+// the extent found by brute force (the ellipse's span at 4,001 heights across the band, each solved for x): the same
+// ends, for round, elongated and needle-thin ellipses at every angle, bands through, above, below and across the tips;
+// and a band that misses the ellipse is reported as missing it.
+TEST(CameraSplatting, EllipseRowExtentIsTheBruteForceOne) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    int rows = 0, missed = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+        // Sigma' = R diag(s1^2, s2^2) R^T, its conic the inverse; r = 2 ln(255 a) for an opacity in (1/255, 1].
+        const double angle = 3.14159265 * unit(rng), s1 = 0.3 + 20.0 * unit(rng);
+        const double s2 = trial % 4 == 0 ? s1 * 1e-3 : 0.3 + 20.0 * unit(rng);
+        const double cs = std::cos(angle), sn = std::sin(angle);
+        const double sxx = cs * cs * s1 * s1 + sn * sn * s2 * s2, syy = sn * sn * s1 * s1 + cs * cs * s2 * s2;
+        const double sxy = cs * sn * (s1 * s1 - s2 * s2), det = sxx * syy - sxy * sxy;
+        const double a = syy / det, b = -sxy / det, c = sxx / det, r = 2.0 * std::log(255.0 * (0.01 + unit(rng)));
+        const SplatEllipse ellipse(a, b, c, r);
+        const double y_half = std::sqrt(r * a / (a * c - b * b));
+        const double y0 = (2.4 * unit(rng) - 1.2) * y_half, y1 = y0 + 4.0 * unit(rng) * (trial % 3 == 0 ? y_half : 1.0);
+        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+        constexpr int kSteps = 4000;
+        for (int k = 0; k <= kSteps; ++k) {
+            const double y = y0 + (y1 - y0) * k / kSteps, disc = b * b * y * y - a * (c * y * y - r);
+            if (disc < 0.0) continue;  // (a x^2 + 2 b y x + c y^2 - r = 0 has no root: not on the ellipse)
+            lo = std::min(lo, (-b * y - std::sqrt(disc)) / a);
+            hi = std::max(hi, (-b * y + std::sqrt(disc)) / a);
+        }
+        double x0 = 0.0, x1 = 0.0;
+        const bool meets = ellipse.row_extent(y0, y1, x0, x1);
+        if (lo > hi) {
+            // No sampled height is on the ellipse: the band misses it, or grazes it between two samples.
+            if (y0 > y_half * (1 + 1e-9) || y1 < -y_half * (1 + 1e-9)) {
+                EXPECT_FALSE(meets) << "trial " << trial;
+                ++missed;
+            }
+            continue;
+        }
+        ASSERT_TRUE(meets) << "trial " << trial;
+        // Sampled ends lie within the true ones, by at most the span's change over one step of height.
+        const double tolerance = 1e-9 * (std::abs(lo) + std::abs(hi) + 1.0);
+        const double step_change = 4.0 * std::sqrt(r * c / (a * c - b * b)) * std::sqrt((y1 - y0) / kSteps / y_half) + tolerance;
+        EXPECT_LE(x0, lo + tolerance) << "trial " << trial;
+        EXPECT_GE(x1, hi - tolerance) << "trial " << trial;
+        EXPECT_GE(x0, lo - step_change) << "trial " << trial;
+        EXPECT_LE(x1, hi + step_change) << "trial " << trial;
+        ++rows;
+    }
+    EXPECT_GT(rows, 1000);
+    EXPECT_GT(missed, 100);
+    // Not positive definite (a conic rounded to a line): every band is reached, all across.
+    double x0 = 0.0, x1 = 0.0;
+    EXPECT_TRUE(SplatEllipse(1.0, 1.0, 1.0, 4.0).row_extent(5.0, 6.0, x0, x1));
+    EXPECT_TRUE(std::isinf(x0) && x0 < 0.0 && std::isinf(x1) && x1 > 0.0);
 }
 
 // Two Gaussians on the optical axis, in two clouds, the far one (blue) given first: the nearer centre (red) is
@@ -364,6 +422,55 @@ TEST(CameraSplatting, MeshesShadowGaussiansAsTraced) {
             EXPECT_NEAR(splatted.rgba()[4 * p + c], traced.rgba()[4 * p + c], 1e-4) << "blocked " << blocked;
             EXPECT_NEAR(splatted.rgba()[4 * p + c], blocked ? 0.0 : srgb_to_linear_ref(0.7 * rgb[c]), 2e-4);
         }
+    }
+}
+
+// The meshes' own top-level scene, which camera-ray splatting traces for its mesh hits and the meshes' shadows on
+// Gaussians, follows the meshes: after a quad in front of a Gaussian and a box shading it from the sun are moved away
+// (Scene::update_mesh, the scene updated, not rebuilt) the frame equals a fresh scene's with the meshes there, bit
+// for bit, and shows the lit Gaussian the meshes hid before.
+TEST(CameraSplatting, MovedMeshesAreWhereTheyAreNow) {
+    const float q[4] = {1, 0, 0, 0}, s[3] = {0.2f, 0.2f, 0.2f}, pos[3] = {0, 0, -3}, rgb[3] = {0.8f, 0.6f, 0.4f};
+    GaussianCloud cloud;
+    add_gaussian(cloud, pos, q, s, 0.7f, rgb);
+    const float lo[3] = {-1.0f, -1.2f, -4.0f}, hi[3] = {1.0f, -1.0f, -2.0f};
+    auto make_scene = [&](Scene& scene, TestMesh& quad, TestMesh& box, bool moved) {
+        const std::uint32_t material = scene.add_material(emissive(0.5f, 0.5f, 0.5f));
+        quad = make_quad_z(-0.5f, 0.5f, -0.5f, 0.5f, -2.0f, material);
+        box = make_box(lo, hi, scene.add_material(Material{}));
+        if (moved) {
+            quad.object_to_world = Matrix4::translation(20.0f, 0.0f, 0.0f);
+            box.object_to_world = Matrix4::translation(0.0f, 0.0f, 30.0f);
+        }
+        scene.add_mesh(quad.desc());
+        scene.add_mesh(box.desc());
+        scene.add_gaussians(cloud);
+        scene.set_world(black_world());
+        Light sun;
+        sun.type = LightType::Sun;
+        sun.power = 1.0f;
+        sun.light_to_world = Matrix4::rotation(1.5707963f, 1, 0, 0);  // local -Z to world +Y
+        scene.add_light(sun);
+    };
+    RenderSettings st = splat_settings(true);
+    st.meshes_shadow_gaussians = true;
+    Scene scene, fresh;
+    TestMesh quad, box, fresh_quad, fresh_box;
+    make_scene(scene, quad, box, false);
+    make_scene(fresh, fresh_quad, fresh_box, true);
+    const Film before = render(scene, pinhole(), st);
+    ASSERT_TRUE(before.stats.camera_ray_splatting);
+    quad.object_to_world = Matrix4::translation(20.0f, 0.0f, 0.0f);
+    box.object_to_world = Matrix4::translation(0.0f, 0.0f, 30.0f);
+    scene.update_mesh(0, quad.desc());
+    scene.update_mesh(1, box.desc());
+    const Film after = render(scene, pinhole(), st), expected = render(fresh, pinhole(), st);
+    ASSERT_EQ(after.pixel_count(), expected.pixel_count());
+    for (std::size_t k = 0; k < 4 * after.pixel_count(); ++k) ASSERT_EQ(after.rgba()[k], expected.rgba()[k]) << k;
+    const std::size_t p = std::size_t(kSize / 2) * kSize + kSize / 2;
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(before.rgba()[4 * p + c], 0.5, 1e-4) << "the quad in front";
+        EXPECT_NEAR(after.rgba()[4 * p + c], srgb_to_linear_ref(0.7 * rgb[c]), 2e-4) << "the Gaussian, lit";
     }
 }
 

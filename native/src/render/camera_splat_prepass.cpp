@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <mutex>
 #include <string>
 
@@ -36,6 +37,19 @@ int filter_margin(const RenderSettings& st) {
 // Not a rank (rank_of), not a key (keys).
 constexpr std::uint32_t kNotVisible = 0xffffffffu;
 constexpr std::uint64_t kNotVisibleKey = ~std::uint64_t(0);
+
+// floor and ceil of a float or double in int range, without the libm call they are on x86-64's baseline (SSE2 has no
+// rounding instruction).
+template <typename T>
+int floor_int(T x) {
+    const int i = int(x);
+    return i - (T(i) > x);
+}
+template <typename T>
+int ceil_int(T x) {
+    const int i = int(x);
+    return i + (T(i) < x);
+}
 
 bool is_cancelled(const std::atomic<bool>* cancel) { return cancel && cancel->load(std::memory_order_relaxed); }
 
@@ -124,6 +138,8 @@ void CameraSplatPrepass::set_up_grids(const RenderSettings& settings) {
     coarse.ny = (region.height() + 2 * margin + kTileSize - 1) / kTileSize;
     // The fine grid subdivides the coarse one exactly, so that a fine tile lies in one coarse tile.
     static_assert(kTileSize % kFineTileSize == 0, "fine tiles subdivide coarse tiles");
+    static_assert((kTileSize & (kTileSize - 1)) == 0 && (kFineTileSize & (kFineTileSize - 1)) == 0,
+                  "tile sizes are powers of two (tile_square multiplies by their reciprocals)");
     fine.size = kFineTileSize;
     fine.nx = coarse.nx * (kTileSize / kFineTileSize);
     fine.ny = coarse.ny * (kTileSize / kFineTileSize);
@@ -241,6 +257,35 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
     }
 }
 
+SplatEllipse::SplatEllipse(double a, double b, double c, double r) : b_(b), det_(a * c - b * b) {
+    definite_ = a > 0.0 && c > 0.0 && det_ > 0.0 && r >= 0.0 && std::isfinite(det_) && std::isfinite(r);
+    if (!definite_) return;
+    // At the extreme points the gradient 2 (C d) is along an axis: the rightmost point has b x + c y = 0, and
+    // q = r there gives x = sqrt(r c / det); likewise |y| <= sqrt(r a / det).
+    inv_a_ = 1.0 / a;
+    ar_ = a * r;
+    y_half_ = std::sqrt(r * a / det_);
+    x_half_ = std::sqrt(r * c / det_);
+    y_at_right_ = -b * x_half_ / c;
+}
+
+bool SplatEllipse::row_extent(double y0, double y1, double& x0, double& x1) const {
+    if (!definite_) {
+        x0 = -std::numeric_limits<double>::infinity();
+        x1 = std::numeric_limits<double>::infinity();
+        return y0 <= y1;
+    }
+    if (y0 > y1 || y0 > y_half_ || y1 < -y_half_) return false;
+    // For a given y the ellipse spans x = (-b y -+ s(y)) / a, s(y) = sqrt(a r - det y^2). The right end is concave in
+    // y and greatest at the rightmost point, the left end convex and least at the leftmost, so over the band each is
+    // extreme at that point's y clamped into the band (the band holds both points of a small splat's row: no root).
+    const double yr = std::clamp(y_at_right_, y0, y1), yl = std::clamp(-y_at_right_, y0, y1);
+    const auto s = [&](double y) { return std::sqrt(std::max(0.0, ar_ - det_ * y * y)); };
+    x1 = yr == y_at_right_ ? x_half_ : (-b_ * yr + s(yr)) * inv_a_;
+    x0 = yl == -y_at_right_ ? -x_half_ : (-b_ * yl - s(yl)) * inv_a_;
+    return true;
+}
+
 // The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
 // q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile widened by the samples' pad.
 // Outside that ellipse every sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps
@@ -248,12 +293,13 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
 // pixels' tile, wherever jitter put its samples (a list per tile a sample fell in cost a packet 2-4 reads).
 CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLists& lists,
                                                                const ProjectedSplat& ps) const {
-    const int size = lists.size;
+    // (Tile sizes are powers of two: the product by the reciprocal is the quotient, exactly.)
+    const float inv_size = 1.0f / float(lists.size);
     const float reach_x = ps.half_extent + float(sample_pad_ + kTilePadMargin);
-    return TileSquare{std::max(0, int(std::floor((ps.u - reach_x - float(grid_x0_)) / size))),
-                      std::max(0, int(std::floor((ps.v - reach_x - float(grid_y0_)) / size))),
-                      std::min(lists.nx - 1, int(std::floor((ps.u + reach_x - float(grid_x0_)) / size))),
-                      std::min(lists.ny - 1, int(std::floor((ps.v + reach_x - float(grid_y0_)) / size)))};
+    return TileSquare{std::max(0, floor_int((ps.u - reach_x - float(grid_x0_)) * inv_size)),
+                      std::max(0, floor_int((ps.v - reach_x - float(grid_y0_)) * inv_size)),
+                      std::min(lists.nx - 1, floor_int((ps.u + reach_x - float(grid_x0_)) * inv_size)),
+                      std::min(lists.ny - 1, floor_int((ps.v + reach_x - float(grid_y0_)) * inv_size))};
 }
 
 template <typename Visit>
@@ -263,21 +309,25 @@ void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const Projec
     const TileSquare sq = tile_square(lists, ps);
     // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
     const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
-    const double a = ps.conic[0], b = ps.conic[1], c = ps.conic[2];
-    auto q = [&](double dx, double dy) { return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy; };
+    // A tile is reached when the ellipse meets it, widened by the pad: in its row, when the ellipse's extent within
+    // the row's band meets the tile's columns. The ellipse and the extent are widened a little more (kSlack) so that
+    // rounding can only add a tile whose samples all skip the splat, never leave one out.
+    constexpr double kSlack = 1e-4;  // px
+    const SplatEllipse ellipse(ps.conic[0], ps.conic[1], ps.conic[2], reach * (1.0 + 1e-6));
+    const double left = double(grid_x0_) - double(ps.u) - pad;  // tile column 0's left edge, widened, from the centre
     for (int ty = sq.ty0; ty <= sq.ty1; ++ty) {
         const double ly = double(grid_y0_ + ty * size) - ps.v - pad, hy = ly + size + 2.0 * pad;
-        for (int tx = sq.tx0; tx <= sq.tx1; ++tx) {
-            const double lx = double(grid_x0_ + tx * size) - ps.u - pad, hx = lx + size + 2.0 * pad;
-            // The minimum of the convex q over the tile: 0 when the centre is inside, else on an edge, where q is a
-            // parabola in the free coordinate (minimised at -b x / c, or -b y / a, clamped to the edge).
-            double least = 0.0;
-            if (!(lx <= 0.0 && 0.0 <= hx && ly <= 0.0 && 0.0 <= hy)) {
-                least = std::min(std::min(q(lx, std::clamp(-b * lx / c, ly, hy)), q(hx, std::clamp(-b * hx / c, ly, hy))),
-                                 std::min(q(std::clamp(-b * ly / a, lx, hx), ly), q(std::clamp(-b * hy / a, lx, hx), hy)));
-            }
-            if (least <= reach) visit(std::size_t(ty) * lists.nx + tx, (ty - sq.ty0) * sq.width() + (tx - sq.tx0));
-        }
+        double x0, x1;
+        if (!ellipse.row_extent(ly - kSlack, hy + kSlack, x0, x1)) continue;
+        // Column tx spans [left + tx size, left + tx size + size + 2 pad]: it meets [x0, x1] from the first column
+        // whose right edge reaches x0 to the last whose left edge is at most x1 (clamped to just around the square
+        // first: x0 and x1 can be infinite).
+        const double lo = left + double(sq.tx0 - 1) * size, hi = left + double(sq.tx1 + 2) * size;
+        const double first = (std::clamp(x0 - kSlack, lo, hi) - left - 2.0 * pad) / size - 1.0;
+        const double last = (std::clamp(x1 + kSlack, lo, hi) - left) / size;
+        const int tx0 = std::max(sq.tx0, ceil_int(first)), tx1 = std::min(sq.tx1, floor_int(last));
+        for (int tx = tx0; tx <= tx1; ++tx)
+            visit(std::size_t(ty) * lists.nx + tx, (ty - sq.ty0) * sq.width() + (tx - sq.tx0));
     }
 }
 

@@ -24,6 +24,23 @@
 
 namespace raysplats {
 
+// The ellipse d^T C d <= r of a splat's offsets d from its centre (C its conic, [[a, b], [b, c]], positive definite),
+// and its extent within a horizontal band of offsets: a row of tiles meets the ellipse exactly where its columns meet
+// that extent, so the binning finds a row's tiles from at most two square roots instead of testing each tile.
+class SplatEllipse {
+public:
+    SplatEllipse(double a, double b, double c, double r);
+    // The x extent [x0, x1] of the ellipse within y0 <= y <= y1; false when the band misses it. A conic that is not
+    // positive definite (float rounding of a needle-thin splat) reaches the whole band.
+    bool row_extent(double y0, double y1, double& x0, double& x1) const;
+
+private:
+    double b_, det_, inv_a_ = 0.0, ar_ = 0.0;
+    double x_half_ = 0.0, y_half_ = 0.0;  // the ellipse's extent, |x| <= x_half_, |y| <= y_half_
+    double y_at_right_ = 0.0;             // y of its rightmost point (its leftmost is (-x_half_, -y_at_right_))
+    bool definite_ = false;
+};
+
 class CameraSplatPrepass {
 public:
     // The pre-pass. Returns early, incomplete, once `cancel` is set (the render loop then renders nothing).

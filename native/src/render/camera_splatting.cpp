@@ -214,10 +214,10 @@ void CameraSplatting::trace_packet(int packet_x, int packet_y, const Ray* rays, 
         else set_packet_lane_inactive(rh, l);
     }
     if (any_mesh) {
-        // Gaussians are ignored (MeshesOnly); rays come back in the packet's order on every Embree path.
+        // The meshes' own scene (Gaussians are ignored); rays come back in the packet's order on every Embree path.
         TraceContext ctx(lanes, 16, TraceMode::MeshesOnly);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-        rtcIntersect16(valid, s_.scene, &ctx, &rh);
+        rtcIntersect16(valid, s_.mesh_scene, &ctx, &rh);
     }
     float mesh_depth[16], view_rates[16];
     std::size_t tiles[16];

@@ -33,6 +33,8 @@ std::string at(const char* what, std::size_t index) { return std::string(what) +
 void Scene::Impl::release_scene() {
     if (scene) rtcReleaseScene(scene);
     scene = nullptr;
+    if (mesh_scene) rtcReleaseScene(mesh_scene);
+    mesh_scene = nullptr;
     for (auto& m : meshes) {
         if (m->sub_scene) rtcReleaseScene(m->sub_scene);
         m->sub_scene = nullptr;
@@ -178,13 +180,15 @@ void place_instance(RTCGeometry inst, const Matrix4& object_to_world, const std:
 // hit's instID[0] names the mesh or Gaussian chunk, and the Gaussians' callbacks read it from their context
 // (gaussian_callbacks.cpp). Embree hands user geometry inside an instance the ray in the instance's space at the
 // ray's time, so a Gaussian chunk moves with its instance like a mesh.
+// `id`: attach it with that geomID (RTC_INVALID_GEOMETRY_ID: the next free one).
 unsigned attach_instance(RTCDevice device, RTCScene top, RTCScene sub, const Matrix4& object_to_world,
-                         const std::vector<Matrix4>& motion) {
+                         const std::vector<Matrix4>& motion, unsigned id = RTC_INVALID_GEOMETRY_ID) {
     RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst, sub);
     place_instance(inst, object_to_world, motion);
     rtcCommitGeometry(inst);
-    const unsigned id = rtcAttachGeometry(top, inst);
+    if (id == RTC_INVALID_GEOMETRY_ID) id = rtcAttachGeometry(top, inst);
+    else rtcAttachGeometryByID(top, inst, id);
     rtcReleaseGeometry(inst);
     return id;
 }
@@ -570,6 +574,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
     release_scene();
     report = Scene::BuildReport{true, 0, 0};
     scene = rtcNewScene(device);
+    mesh_scene = rtcNewScene(device);
     top.clear();
     auto record_top = [&](unsigned id, TopGeometry what) {
         if (top.size() <= id) top.resize(id + 1);
@@ -587,6 +592,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
         rtcReleaseGeometry(tri);
         rtcCommitScene(m.sub_scene);
         m.top_geom_id = attach_instance(device, scene, m.sub_scene, m.desc.object_to_world, m.motion);
+        attach_instance(device, mesh_scene, m.sub_scene, m.desc.object_to_world, m.motion, m.top_geom_id);
         m.dirty = false;
         ++report.meshes;
         record_top(m.top_geom_id, TopGeometry{TopGeometry::Mesh, std::uint32_t(mi)});
@@ -620,6 +626,7 @@ void Scene::Impl::build_all(GaussianMode mode) {
         check_device("building Gaussians");
     }
     rtcCommitScene(scene);
+    rtcCommitScene(mesh_scene);
     check_device("building the BVH");
 }
 
@@ -635,6 +642,7 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
         rtcCommitGeometry(tri);
         rtcCommitScene(m.sub_scene);
         set_instance_transform(scene, m.top_geom_id, m.desc.object_to_world, m.motion);
+        set_instance_transform(mesh_scene, m.top_geom_id, m.desc.object_to_world, m.motion);
         m.dirty = false;
         ++report.meshes;
     }
@@ -660,6 +668,7 @@ bool Scene::Impl::build_changes(GaussianMode mode) {
         g.changed_rows.clear();
     }
     rtcCommitScene(scene);
+    rtcCommitScene(mesh_scene);
     check_device("updating the BVH");
     return true;
 }

@@ -77,6 +77,10 @@ struct Scene::Impl {
     RTCDevice device = nullptr;
     std::string embree_config;  // what rtcNewDevice was given
     RTCScene scene = nullptr;
+    // The meshes alone, each instanced with the same geomID as in `scene`: the queries that ignore the Gaussians
+    // (camera-ray splatting's mesh hits, the meshes' shadows on Gaussians) would otherwise descend into every Gaussian
+    // chunk their rays cross and call its callback only to return.
+    RTCScene mesh_scene = nullptr;
     std::string device_error;
 
     std::vector<Material> materials;

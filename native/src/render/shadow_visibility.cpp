@@ -27,7 +27,7 @@ float ShadowVisibility::shadow(const glm::vec3& o, const glm::vec3& d, float dis
     ray.flags = 0;
     // rtcOccluded1: a single ray (N = 1 in the callbacks, id 0 = lanes[0]); Embree reports occlusion by setting tfar
     // to -inf, and so does the Gaussians' occluded callback once the transmittance falls below the threshold.
-    rtcOccluded1(s_.scene, &ctx, &ray);
+    rtcOccluded1(meshes_only ? s_.mesh_scene : s_.scene, &ctx, &ray);
     ++c.traced;
     if (ray.tfar == -kInf) return 0.0f;
     return L.transmittance;
