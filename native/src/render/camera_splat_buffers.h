@@ -47,18 +47,25 @@ struct SplatTileLists {
     std::size_t tile_of(float x, float y, int x0, int y0) const;
 };
 
+// The tiles of a splat's square (from column tx0, row ty0, `width` columns wide) that the binning found it reaches, as
+// bits row by row; width 0: not kept (a square of more than 64 tiles), the fill pass tests it again.
+struct ReachedTiles {
+    std::uint64_t bits;
+    std::uint16_t tx0, ty0, width;
+};
+
 struct CameraSplatBuffers {
     SplatArray<ProjectedSplat> splats;
     SplatArray<SplatSource> sources;
     SplatTileLists coarse, fine;
     // Working arrays: every Gaussian's sort key and projection by global index, each one's rank in the sort, each
-    // splat's level (coarse or fine), the binning's per-chunk counts and each splat's tiles as bits.
+    // splat's level (coarse or fine), the binning's per-chunk counts and each splat's tiles.
     std::vector<std::uint64_t> keys;
     SplatArray<ProjectedSplat> projected;
     std::vector<std::uint32_t> rank_of;
     SplatArray<std::uint8_t> level;
     std::vector<std::uint32_t> starts;
-    SplatArray<std::uint64_t> reached;
+    SplatArray<ReachedTiles> reached;
 
     // Bytes of what a frame's samples read (the splats and tile lists), and of everything held.
     std::size_t frame_bytes() const;

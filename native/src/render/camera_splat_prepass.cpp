@@ -25,6 +25,7 @@ constexpr float kDilation = 0.3f;           // px^2 added to the 2D covariance's
 constexpr float kJacobianClamp = 1.3f;      // x/z and y/z clamped to 1.3 x the frustum's half extent (3DGS)
 constexpr float kFootprintSigmas = 3.0f;    // square half side in standard deviations (3DGS getRect's radius)
 constexpr double kTilePadMargin = 1e-3;     // px added to the samples' pad when binning (a margin for rounding)
+constexpr float kLeastPowerMargin = 1e-3f;  // ProjectedSplat::least_power's margin below ln(1/255 / opacity)
 
 // Pixels of the pixel filter's reach around a pixel (PixelFilterSampler::reach), rounded up, plus one: camera samples
 // fall within it. A multiple of 4, so that the render loop's 4 x 4 packets of pixels (from the region's corner) each
@@ -151,7 +152,8 @@ void CameraSplatPrepass::set_up_grids(const RenderSettings& settings) {
                       : 0.0f;
 }
 
-bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const {
+bool CameraSplatPrepass::project(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim,
+                                 ProjectedSplat& out) const {
     const GaussianPrimitive& g = set.prims[prim];
     if (!(g.opacity >= kMinAlpha)) return false;
     const glm::vec3 p = world_to_camera_ * (set.world_center(prim) - camera_origin_);
@@ -176,8 +178,7 @@ bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, Pro
     const float ty = std::clamp(p.y / z, proj_.center_y_tan - lim_y_, proj_.center_y_tan + lim_y_);
     const glm::vec3 j0(proj_.fx / z, 0.0f, proj_.fx * tx / z), j1(0.0f, -proj_.fy / z, -proj_.fy * ty / z);
     // Rows of J W A (2 x 3), applied to L's columns: K = J W A L, Sigma' = K K^T.
-    const glm::mat3 wa = world_to_camera_ * set.linear;
-    const glm::vec3 r0 = glm::transpose(wa) * j0, r1 = glm::transpose(wa) * j1;
+    const glm::vec3 r0 = wa_t * j0, r1 = wa_t * j1;
     double a = kDilation, b = 0.0, c = kDilation;
     for (int k = 0; k < 3; ++k) {
         const double k0 = glm::dot(r0, l[k]), k1 = glm::dot(r1, l[k]);
@@ -201,7 +202,7 @@ bool CameraSplatPrepass::project(const GaussianSet& set, std::uint32_t prim, Pro
     out.opacity = g.opacity;
     out.depth = z;
     out.half_extent = half;
-    out.least_power = std::log(kMinAlpha / g.opacity) - 1e-3f;
+    out.least_power = std::log(kMinAlpha / g.opacity) - kLeastPowerMargin;
     return true;
 }
 
@@ -213,9 +214,12 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     SplatArray<ProjectedSplat>& projected = b_.projected;
     keys.assign(set_base.back(), kNotVisibleKey);
     projected.resize(set_base.back());
+    // (W A)^T of each set, W the world-to-camera rotation and A the set's linear part.
+    std::vector<glm::mat3> wa_t(s_.gaussians.size());
+    for (std::size_t k = 0; k < wa_t.size(); ++k) wa_t[k] = glm::transpose(world_to_camera_ * s_.gaussians[k]->linear);
     for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
         ProjectedSplat& ps = projected[set_base[k] + j];
-        if (!project(set, std::uint32_t(j), ps)) return;
+        if (!project(set, wa_t[k], std::uint32_t(j), ps)) return;
         std::uint32_t depth_bits;
         std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
         keys[set_base[k] + j] = std::uint64_t(depth_bits) << 32 | (set_base[k] + j);
@@ -303,12 +307,14 @@ CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLi
 }
 
 template <typename Visit>
-void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const {
+void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, const TileSquare& sq,
+                                       Visit&& visit) const {
     const int size = lists.size;
     const double pad = sample_pad_ + kTilePadMargin;
-    const TileSquare sq = tile_square(lists, ps);
-    // (A margin for rounding: a sample whose alpha rounds up to 1/255 must find the splat in its tile.)
-    const double reach = 2.0 * std::log(255.0 * double(ps.opacity)) * 1.001 + 1e-3;
+    // 2 ln(255 a) with a margin for rounding (a sample whose alpha rounds up to 1/255 must find the splat in its
+    // tile). ln(255 a) is -least_power less its margin: the float logarithm that gave it is within 2e-6 of the exact
+    // one, which the last term covers.
+    const double reach = 2.0 * (-double(ps.least_power) - double(kLeastPowerMargin)) * 1.001 + 1e-3 + 1e-5;
     // A tile is reached when the ellipse meets it, widened by the pad: in its row, when the ellipse's extent within
     // the row's band meets the tile's columns. The ellipse and the extent are widened a little more (kSlack) so that
     // rounding can only add a tile whose samples all skip the splat, never leave one out.
@@ -363,20 +369,24 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
     // The tiles each splat reaches are found once: the count pass records them as bits over the splat's square of
     // tiles (row by row), and the fill pass reads the bits instead of testing the ellipse on every tile again (the
     // tests were most of the binning). Every fine splat's square fits in 64 tiles; a bigger square is tested again.
+    // The square is kept with the bits, so that the fill pass reads neither the splat nor its square again.
     constexpr int kMaskTiles = 64;
-    SplatArray<std::uint64_t>& reached = b_.reached;
+    SplatArray<ReachedTiles>& reached = b_.reached;
     reached.resize(splats.size());
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* count = starts.data() + k * tile_count;
         for (std::size_t i = bounds[k], end = bounds[k + 1]; i < end; ++i) {
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;
             if (level[i] != which) continue;
+            const TileSquare sq = tile_square(lists, splats[i]);
             std::uint64_t bits = 0;
-            for_each_tile(lists, splats[i], [&](std::size_t t, int bit) {
+            for_each_tile(lists, splats[i], sq, [&](std::size_t t, int bit) {
                 ++count[t];
                 if (bit < kMaskTiles) bits |= std::uint64_t(1) << bit;
             });
-            reached[i] = bits;
+            const bool kept = sq.count() <= kMaskTiles && sq.tx0 <= 0xffff && sq.ty0 <= 0xffff;
+            reached[i] = ReachedTiles{bits, std::uint16_t(sq.tx0), std::uint16_t(sq.ty0),
+                                      std::uint16_t(kept ? sq.width() : 0)};
         }
     });
     if (is_cancelled(cancel)) return;
@@ -397,14 +407,14 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
             if (i % kCancelCheckInterval == 0 && is_cancelled(cancel)) return;  // (the lists unfinished: nothing renders)
             if (level[i] != which) continue;
             auto add = [&](std::size_t t) { lists.entries[lists.offsets[t] + cursor[t]++] = std::uint32_t(i); };
-            const TileSquare sq = tile_square(lists, splats[i]);
-            if (sq.count() > kMaskTiles) {
-                for_each_tile(lists, splats[i], [&](std::size_t t, int) { add(t); });
+            const ReachedTiles& r = reached[i];
+            if (r.width == 0) {  // (not kept: tested again)
+                for_each_tile(lists, splats[i], tile_square(lists, splats[i]), [&](std::size_t t, int) { add(t); });
                 continue;
             }
-            for (std::uint64_t bits = reached[i]; bits != 0; bits &= bits - 1) {
+            for (std::uint64_t bits = r.bits; bits != 0; bits &= bits - 1) {
                 const int bit = __builtin_ctzll(bits);
-                add(std::size_t(sq.ty0 + bit / sq.width()) * lists.nx + std::size_t(sq.tx0 + bit % sq.width()));
+                add(std::size_t(r.ty0 + bit / r.width) * lists.nx + std::size_t(r.tx0 + bit % r.width));
             }
         }
     });

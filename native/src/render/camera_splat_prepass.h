@@ -75,8 +75,9 @@ public:
 private:
     // The projection and the tile grids of the render region.
     void set_up_grids(const RenderSettings& settings);
-    // Projects Gaussian `prim` of `set`: false when it is culled (near, far, faint, degenerate, off the grid).
-    bool project(const GaussianSet& set, std::uint32_t prim, ProjectedSplat& out) const;
+    // Projects Gaussian `prim` of `set`, whose (W A)^T is `wa_t` (W: world to camera, A: the set's linear part): false
+    // when it is culled (near, far, faint, degenerate, off the grid).
+    bool project(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim, ProjectedSplat& out) const;
     // Every Gaussian projected once, by global index (set_base[k] + j: primitive j of set k; the culled ones' entries
     // unwritten), and the visible Gaussians' keys, depth above global index, sorted; false when cancelled.
     bool sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel);
@@ -91,9 +92,10 @@ private:
     };
     TileSquare tile_square(const SplatTileLists& lists, const ProjectedSplat& ps) const;
     // Calls visit(t, bit) for every tile t of `lists` where the splat can reach alpha 1/255; bit is the tile's place
-    // in its square, row by row ((ty - ty0) * width + tx - tx0).
+    // in its square `sq` (tile_square), row by row ((ty - ty0) * width + tx - tx0).
     template <typename Visit>
-    void for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, Visit&& visit) const;
+    void for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, const TileSquare& sq,
+                       Visit&& visit) const;
     // Bins the splats of `level` into `lists` (sized already): only tiles the splat can reach alpha 1/255 in.
     void bin(SplatTileLists& lists, std::uint8_t which, const std::atomic<bool>* cancel);
 
