@@ -309,7 +309,16 @@ CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLi
 template <typename Visit>
 void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, const TileSquare& sq,
                                        Visit&& visit) const {
+    // A square of at most 2 x 2 tiles: each of them (the ellipse leaves out few tiles of such a square, and a tile too
+    // many only costs its samples a test that skips the splat).
+    if (sq.tx1 - sq.tx0 < 2 && sq.ty1 - sq.ty0 < 2) {
+        for (int ty = sq.ty0; ty <= sq.ty1; ++ty)
+            for (int tx = sq.tx0; tx <= sq.tx1; ++tx)
+                visit(std::size_t(ty) * lists.nx + tx, (ty - sq.ty0) * sq.width() + (tx - sq.tx0));
+        return;
+    }
     const int size = lists.size;
+    const double inv_size = 1.0 / size;  // (a power of two: exact)
     const double pad = sample_pad_ + kTilePadMargin;
     // 2 ln(255 a) with a margin for rounding (a sample whose alpha rounds up to 1/255 must find the splat in its
     // tile). ln(255 a) is -least_power less its margin: the float logarithm that gave it is within 2e-6 of the exact
@@ -329,8 +338,8 @@ void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const Projec
         // whose right edge reaches x0 to the last whose left edge is at most x1 (clamped to just around the square
         // first: x0 and x1 can be infinite).
         const double lo = left + double(sq.tx0 - 1) * size, hi = left + double(sq.tx1 + 2) * size;
-        const double first = (std::clamp(x0 - kSlack, lo, hi) - left - 2.0 * pad) / size - 1.0;
-        const double last = (std::clamp(x1 + kSlack, lo, hi) - left) / size;
+        const double first = (std::clamp(x0 - kSlack, lo, hi) - left - 2.0 * pad) * inv_size - 1.0;
+        const double last = (std::clamp(x1 + kSlack, lo, hi) - left) * inv_size;
         const int tx0 = std::max(sq.tx0, ceil_int(first)), tx1 = std::min(sq.tx1, floor_int(last));
         for (int tx = tx0; tx <= tx1; ++tx)
             visit(std::size_t(ty) * lists.nx + tx, (ty - sq.ty0) * sq.width() + (tx - sq.tx0));
