@@ -38,7 +38,9 @@ struct alignas(16) GaussianPrimitive {
     // projection does not read the cloud's scales in its own order).
     float thin_scale;
     glm::vec3 row2;
-    float pad2;
+    // Squared Mahalanobis radius within which the Gaussian can reach alpha 1/255 (GaussianGroup::support; not positive
+    // when it never does): computed once here, where the box and the group read it.
+    float support_sq;
 };
 static_assert(sizeof(GaussianPrimitive) == 64, "one cache line per Gaussian");
 
@@ -140,8 +142,8 @@ struct GaussianSet {
     // Recomputes the primitives of the given Gaussians (cloud indices) only, in the current mode and order; returns
     // the chunk flags as prepare() does.
     std::vector<char> prepare_rows(const std::vector<std::uint32_t>& rows);
-    // linear_rgb and display_rgb of primitive j from the degree-0 SH of its Gaussian.
-    void store_linear_rgb(std::uint32_t j);
+    // linear_rgb and display_rgb of primitive j from the degree-0 SH of its Gaussian, cloud index i.
+    void store_linear_rgb(std::uint32_t j, std::size_t i);
     glm::vec3 world_center(std::uint32_t i) const { return linear * prims[i].center + translation; }
     // Linear colour of primitive i seen from `origin` (world).
     glm::vec3 color(std::uint32_t i, const glm::vec3& origin) const;
