@@ -506,7 +506,8 @@ TEST(CameraSplatting, CancelledBeforeStart) {
 
 // A scene that keeps its frame buffers (Scene::set_keep_frame_buffers, for Persistent Data) renders each frame bit for
 // bit as a scene that does not: a frame with fewer splats and tile entries after one with more (what the kept arrays
-// held beyond the new frame's lengths) and a different image size. It holds the storage between frames and frees it
+// held beyond the new frame's lengths), a different image size, and a frame with more entries than any before (the
+// arrays grown without what they held). It holds the storage between frames and frees it
 // when told to stop keeping it; a scene that does not keep it holds none.
 TEST(CameraSplatting, KeptFrameBuffersRenderAsAFreshScene) {
     const GaussianCloud cloud = random_cloud(11, 600, 1.0f);
@@ -535,7 +536,10 @@ TEST(CameraSplatting, KeptFrameBuffersRenderAsAFreshScene) {
     EXPECT_EQ(first.rgba(), render(fresh, pinhole(), wide).rgba());
     EXPECT_EQ(fresh.kept_frame_buffer_bytes(), 0u);
 
-    for (const auto& [camera, st] : {std::pair{near_view, narrow}, std::pair{far_view, wide}}) {
+    RenderSettings big = wide;  // (more tile entries than any frame before: the kept arrays grow)
+    big.width = 120;
+    big.height = 90;
+    for (const auto& [camera, st] : {std::pair{near_view, narrow}, std::pair{far_view, wide}, std::pair{pinhole(), big}}) {
         const Film again = render(kept, camera, st);
         const Film reference = render(fresh, camera, st);
         ASSERT_TRUE(again.stats.camera_ray_splatting);
@@ -546,7 +550,8 @@ TEST(CameraSplatting, KeptFrameBuffersRenderAsAFreshScene) {
             EXPECT_EQ(again[channel], reference[channel]) << film_channels()[std::size_t(channel)].key;
     }
     EXPECT_LT(render(kept, near_view, narrow).stats.splats, first.stats.splats);
-    EXPECT_GE(kept.kept_frame_buffer_bytes(), held);  // (capacity only grows)
+    EXPECT_GT(render(kept, pinhole(), big).stats.splat_tile_entries, first.stats.splat_tile_entries);
+    EXPECT_GT(kept.kept_frame_buffer_bytes(), held);  // (capacity only grows, and it grew)
     kept.set_keep_frame_buffers(false);
     EXPECT_EQ(kept.kept_frame_buffer_bytes(), 0u);
 }

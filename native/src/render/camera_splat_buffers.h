@@ -19,6 +19,18 @@ namespace raysplats {
 template <typename T>
 using SplatArray = std::vector<T, DefaultInitAllocator<T>>;
 
+// Sizes an array that is then written in full. Grown, it keeps nothing of what it held (a resize would copy it all to
+// the new memory, and a kept scene's next frame has a few more splats or entries than the last as often as not) and
+// takes room for 1/16 more, so that the frames after do not grow it again.
+template <typename T>
+void size_for_overwrite(SplatArray<T>& a, std::size_t n) {
+    if (n > a.capacity()) {
+        a.clear();
+        a.reserve(n + n / 16);
+    }
+    a.resize(n);
+}
+
 // One Gaussian as the camera sees it, in depth order: what every camera sample reads (48 bytes; the colour is here,
 // not with the rest of what only the samples it covers read, because a second array meant a second cache miss)...
 struct alignas(16) ProjectedSplat {

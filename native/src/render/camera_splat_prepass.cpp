@@ -108,7 +108,7 @@ CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSet
     // tile meets a few percent, so splatting such a view cost several times the traced render. Small splats therefore
     // go into lists of the packets' own 4 px tiles; big ones stay in 16 px lists, where they cost 16x fewer entries
     // (4 px tiles alone multiply a big splat's entries, and the pre-pass with them). A packet merges its two lists.
-    b_.level.resize(b_.splats.size());
+    size_for_overwrite(b_.level, b_.splats.size());
     for (std::size_t i = 0; i < b_.splats.size(); ++i) b_.level[i] = b_.splats[i].half_extent <= kFineSplatMaxHalfExtent;
     bin(b_.coarse, 0, cancel);
     if (is_cancelled(cancel)) return;
@@ -213,7 +213,7 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     std::vector<std::uint64_t>& keys = b_.keys;
     SplatArray<ProjectedSplat>& projected = b_.projected;
     keys.assign(set_base.back(), kNotVisibleKey);
-    projected.resize(set_base.back());
+    size_for_overwrite(projected, set_base.back());
     // (W A)^T of each set, W the world-to-camera rotation and A the set's linear part.
     std::vector<glm::mat3> wa_t(s_.gaussians.size());
     for (std::size_t k = 0; k < wa_t.size(); ++k) wa_t[k] = glm::transpose(world_to_camera_ * s_.gaussians[k]->linear);
@@ -241,8 +241,8 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
     });
-    b_.splats.resize(keys.size());
-    b_.sources.resize(keys.size());
+    size_for_overwrite(b_.splats, keys.size());
+    size_for_overwrite(b_.sources, keys.size());
     const glm::vec3 origin = camera_origin_;
     for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
         const std::uint32_t rank = rank_of[set_base[k] + j];
@@ -381,7 +381,7 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
     // The square is kept with the bits, so that the fill pass reads neither the splat nor its square again.
     constexpr int kMaskTiles = 64;
     SplatArray<ReachedTiles>& reached = b_.reached;
-    reached.resize(splats.size());
+    size_for_overwrite(reached, splats.size());
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* count = starts.data() + k * tile_count;
         for (std::size_t i = bounds[k], end = bounds[k + 1]; i < end; ++i) {
@@ -409,7 +409,7 @@ void CameraSplatPrepass::bin(SplatTileLists& lists, std::uint8_t which, const st
         }
         lists.offsets[t + 1] = at;
     }
-    lists.entries.resize(lists.offsets[tile_count]);
+    size_for_overwrite(lists.entries, lists.offsets[tile_count]);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
         std::uint32_t* cursor = starts.data() + k * tile_count;
         for (std::size_t i = bounds[k], end = bounds[k + 1]; i < end; ++i) {
