@@ -425,6 +425,37 @@ TEST(CameraSplatting, MeshesShadowGaussiansAsTraced) {
     }
 }
 
+// The pre-pass projects four Gaussians to an instruction (CameraSplatPrepass::project4) and the rest one at a time;
+// both take the same operations in the same order, so a frame is bit for bit the frame of the one-at-a-time path
+// (RAYSPLATS_PROJECTION=scalar): thousands of random Gaussians, flat and volumetric, some behind the camera, some
+// thin, in two clouds of which one is moved and turned.
+TEST(CameraSplatting, FourAtOnceProjectsAsOneAtATime) {
+    const GaussianCloud first = random_cloud(21, 4003, 2.0f), second = random_cloud(22, 1502, 1.5f);
+    Scene scene;
+    scene.add_gaussians(first, Matrix4::translation(0.3f, -0.2f, -4.0f));
+    scene.add_gaussians(second, Matrix4::translation(-0.5f, 0.4f, -3.0f) * Matrix4::rotation(0.6f, 0.3f, 0.9f, 0.2f));
+    scene.set_world(black_world());
+    for (GaussianMode mode : {GaussianMode::Volumetric, GaussianMode::Flat}) {
+        RenderSettings st = splat_settings(true, BlendSpace::Display, mode);
+        st.width = 96;
+        st.height = 64;
+        st.jitter = true;
+        const Film four = render(scene, pinhole(), st);
+        ::setenv("RAYSPLATS_PROJECTION", "scalar", 1);
+        const Film one = render(scene, pinhole(), st);
+        ::unsetenv("RAYSPLATS_PROJECTION");
+        ASSERT_TRUE(four.stats.camera_ray_splatting);
+        EXPECT_GT(four.stats.splats, 3000u);
+        EXPECT_EQ(four.stats.splats, one.stats.splats);
+        EXPECT_EQ(four.stats.splat_tile_entries, one.stats.splat_tile_entries);
+        for (const FilmChannel channel : {FilmChannel::Combined, FilmChannel::Depth, FilmChannel::Alpha})
+            EXPECT_EQ(four[channel], one[channel]) << film_channels()[std::size_t(channel)].key;
+        double sum = 0.0;
+        for (float a : four.alpha()) sum += a;
+        EXPECT_GT(sum, 0.05 * four.pixel_count());
+    }
+}
+
 // The meshes' own top-level scene, which camera-ray splatting traces for its mesh hits and the meshes' shadows on
 // Gaussians, follows the meshes: after a quad in front of a Gaussian and a box shading it from the sun are moved away
 // (Scene::update_mesh, the scene updated, not rebuilt) the frame equals a fresh scene's with the meshes there, bit

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <mutex>
@@ -9,6 +10,8 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+
+#include <immintrin.h>
 
 #include "core/radix_sort.h"
 #include "gaussian_callbacks.h"
@@ -206,6 +209,136 @@ bool CameraSplatPrepass::project(const GaussianSet& set, const glm::mat3& wa_t, 
     return true;
 }
 
+// project() for primitives prim .. prim + 3 of `set` at once: each lane takes the scalar code's IEEE operations in
+// its order (glm's matrix products, inverse and dot products as glm writes them; no fused operations), so each
+// projection is bit for bit the scalar one, four to an instruction. Returns the visible lanes, whose `out` it writes.
+unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim,
+                                      ProjectedSplat* out) const {
+    const GaussianPrimitive* g = &set.prims[prim];
+    // Each primitive is four quads: (centre, opacity), (row 0, -), (row 1, thin scale), (row 2, -).
+    __m128 cx = _mm_loadu_ps(&g[0].center.x), cy = _mm_loadu_ps(&g[1].center.x), cz = _mm_loadu_ps(&g[2].center.x),
+           op = _mm_loadu_ps(&g[3].center.x);
+    _MM_TRANSPOSE4_PS(cx, cy, cz, op);
+    __m128 r0x = _mm_loadu_ps(&g[0].row0.x), r0y = _mm_loadu_ps(&g[1].row0.x), r0z = _mm_loadu_ps(&g[2].row0.x),
+           unused0 = _mm_loadu_ps(&g[3].row0.x);
+    _MM_TRANSPOSE4_PS(r0x, r0y, r0z, unused0);
+    __m128 r1x = _mm_loadu_ps(&g[0].row1.x), r1y = _mm_loadu_ps(&g[1].row1.x), r1z = _mm_loadu_ps(&g[2].row1.x),
+           thin = _mm_loadu_ps(&g[3].row1.x);
+    _MM_TRANSPOSE4_PS(r1x, r1y, r1z, thin);
+    __m128 r2x = _mm_loadu_ps(&g[0].row2.x), r2y = _mm_loadu_ps(&g[1].row2.x), r2z = _mm_loadu_ps(&g[2].row2.x),
+           unused2 = _mm_loadu_ps(&g[3].row2.x);
+    _MM_TRANSPOSE4_PS(r2x, r2y, r2z, unused2);
+    const auto set1 = [](float v) { return _mm_set1_ps(v); };
+    const auto add = [](__m128 a, __m128 b) { return _mm_add_ps(a, b); };
+    const auto sub = [](__m128 a, __m128 b) { return _mm_sub_ps(a, b); };
+    const auto mul = [](__m128 a, __m128 b) { return _mm_mul_ps(a, b); };
+    const auto div = [](__m128 a, __m128 b) { return _mm_div_ps(a, b); };
+    // glm: (m * v)[i] = m[0][i] v.x + m[1][i] v.y + m[2][i] v.z, summed left to right.
+    const auto mat_vec = [&](const glm::mat3& m, int i, __m128 x, __m128 y, __m128 z) {
+        return add(add(mul(set1(m[0][i]), x), mul(set1(m[1][i]), y)), mul(set1(m[2][i]), z));
+    };
+    __m128 visible = _mm_cmpge_ps(op, set1(kMinAlpha));
+    // p = W (A c + b - o)
+    const __m128 dx = sub(add(mat_vec(set.linear, 0, cx, cy, cz), set1(set.translation.x)), set1(camera_origin_.x));
+    const __m128 dy = sub(add(mat_vec(set.linear, 1, cx, cy, cz), set1(set.translation.y)), set1(camera_origin_.y));
+    const __m128 dz = sub(add(mat_vec(set.linear, 2, cx, cy, cz), set1(set.translation.z)), set1(camera_origin_.z));
+    const __m128 px = mat_vec(world_to_camera_, 0, dx, dy, dz), py = mat_vec(world_to_camera_, 1, dx, dy, dz);
+    const __m128 z = _mm_xor_ps(mat_vec(world_to_camera_, 2, dx, dy, dz), set1(-0.0f));
+    visible = _mm_and_ps(visible, _mm_and_ps(_mm_cmpgt_ps(z, set1(near_)), _mm_cmplt_ps(z, set1(far_))));
+    // L = M^-1, M[c][r] = row r's component c (glm's inverse, term for term); l[k] is L's column k.
+    const __m128 m00 = r0x, m01 = r1x, m02 = r2x, m10 = r0y, m11 = r1y, m12 = r2y, m20 = r0z, m21 = r1z, m22 = r2z;
+    const __m128 one_over_det =
+        div(set1(1.0f), add(sub(mul(m00, sub(mul(m11, m22), mul(m21, m12))), mul(m10, sub(mul(m01, m22), mul(m21, m02)))),
+                            mul(m20, sub(mul(m01, m12), mul(m11, m02)))));
+    const auto neg = [](__m128 a) { return _mm_xor_ps(a, _mm_set1_ps(-0.0f)); };
+    __m128 l[3][3];  // [column][row]
+    l[0][0] = mul(sub(mul(m11, m22), mul(m21, m12)), one_over_det);
+    l[1][0] = mul(neg(sub(mul(m10, m22), mul(m20, m12))), one_over_det);
+    l[2][0] = mul(sub(mul(m10, m21), mul(m20, m11)), one_over_det);
+    l[0][1] = mul(neg(sub(mul(m01, m22), mul(m21, m02))), one_over_det);
+    l[1][1] = mul(sub(mul(m00, m22), mul(m20, m02)), one_over_det);
+    l[2][1] = mul(neg(sub(mul(m00, m21), mul(m20, m01))), one_over_det);
+    l[0][2] = mul(sub(mul(m01, m12), mul(m11, m02)), one_over_det);
+    l[1][2] = mul(neg(sub(mul(m00, m12), mul(m10, m02))), one_over_det);
+    l[2][2] = mul(sub(mul(m00, m11), mul(m10, m01)), one_over_det);
+    if (set.flat)
+        for (int r = 0; r < 3; ++r) l[2][r] = mul(l[2][r], thin);
+    // std::clamp(v, lo, hi) = v < lo ? lo : (hi < v ? hi : v)
+    const auto clamp = [](__m128 v, float lo, float hi) {
+        const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+        const __m128 below = _mm_cmplt_ps(v, vlo), above = _mm_cmplt_ps(vhi, v);
+        const __m128 upper = _mm_or_ps(_mm_and_ps(above, vhi), _mm_andnot_ps(above, v));
+        return _mm_or_ps(_mm_and_ps(below, vlo), _mm_andnot_ps(below, upper));
+    };
+    const __m128 tx = clamp(div(px, z), proj_.center_x_tan - lim_x_, proj_.center_x_tan + lim_x_);
+    const __m128 ty = clamp(div(py, z), proj_.center_y_tan - lim_y_, proj_.center_y_tan + lim_y_);
+    const __m128 zero = _mm_setzero_ps();
+    const __m128 j0x = div(set1(proj_.fx), z), j0z = div(mul(set1(proj_.fx), tx), z);
+    const __m128 j1y = div(set1(-proj_.fy), z), j1z = div(mul(set1(-proj_.fy), ty), z);
+    __m128 r0[3], r1[3];
+    for (int i = 0; i < 3; ++i) {
+        r0[i] = mat_vec(wa_t, i, j0x, zero, j0z);
+        r1[i] = mat_vec(wa_t, i, zero, j1y, j1z);
+    }
+    // glm::dot(a, b) = (a.x b.x + a.y b.y) + a.z b.z, in float; the sums in double.
+    __m128d a[2], b[2], c[2];
+    for (int h = 0; h < 2; ++h) a[h] = b[h] = c[h] = _mm_setzero_pd();
+    for (int h = 0; h < 2; ++h) a[h] = c[h] = _mm_set1_pd(double(kDilation));
+    for (int k = 0; k < 3; ++k) {
+        const __m128 k0 = add(add(mul(r0[0], l[k][0]), mul(r0[1], l[k][1])), mul(r0[2], l[k][2]));
+        const __m128 k1 = add(add(mul(r1[0], l[k][0]), mul(r1[1], l[k][1])), mul(r1[2], l[k][2]));
+        for (int h = 0; h < 2; ++h) {
+            const __m128d k0d = _mm_cvtps_pd(h ? _mm_movehl_ps(k0, k0) : k0);
+            const __m128d k1d = _mm_cvtps_pd(h ? _mm_movehl_ps(k1, k1) : k1);
+            a[h] = _mm_add_pd(a[h], _mm_mul_pd(k0d, k0d));
+            b[h] = _mm_add_pd(b[h], _mm_mul_pd(k0d, k1d));
+            c[h] = _mm_add_pd(c[h], _mm_mul_pd(k1d, k1d));
+        }
+    }
+    alignas(16) double det_of[4], conic_of[3][4], half_of[4];
+    for (int h = 0; h < 2; ++h) {
+        const __m128d det = _mm_sub_pd(_mm_mul_pd(a[h], c[h]), _mm_mul_pd(b[h], b[h]));
+        const __m128d mid = _mm_mul_pd(_mm_set1_pd(0.5), _mm_add_pd(a[h], c[h]));
+        // std::max(0.1, x) = 0.1 < x ? x : 0.1, as MAXPD(x, 0.1) (which gives 0.1 for NaN too)
+        const __m128d spread = _mm_max_pd(_mm_sub_pd(_mm_mul_pd(mid, mid), det), _mm_set1_pd(0.1));
+        const __m128d lambda_max = _mm_add_pd(mid, _mm_sqrt_pd(spread));
+        _mm_store_pd(half_of + 2 * h, _mm_mul_pd(_mm_set1_pd(double(kFootprintSigmas)), _mm_sqrt_pd(lambda_max)));
+        _mm_store_pd(det_of + 2 * h, det);
+        _mm_store_pd(conic_of[0] + 2 * h, _mm_div_pd(c[h], det));
+        _mm_store_pd(conic_of[1] + 2 * h, _mm_div_pd(_mm_xor_pd(b[h], _mm_set1_pd(-0.0)), det));
+        _mm_store_pd(conic_of[2] + 2 * h, _mm_div_pd(a[h], det));
+    }
+    const __m128 u = add(set1(proj_.cx), div(mul(set1(proj_.fx), px), z));
+    const __m128 v = sub(set1(proj_.cy), div(mul(set1(proj_.fy), py), z));
+    alignas(16) float u_of[4], v_of[4], z_of[4], op_of[4];
+    _mm_store_ps(u_of, u);
+    _mm_store_ps(v_of, v);
+    _mm_store_ps(z_of, z);
+    _mm_store_ps(op_of, op);
+    unsigned lanes = unsigned(_mm_movemask_ps(visible));
+    for (unsigned live = lanes; live; live &= live - 1) {
+        const int lane = __builtin_ctz(live);
+        const double det = det_of[lane];
+        const float half = float(half_of[lane]), ul = u_of[lane], vl = v_of[lane];
+        if (!(det > 0.0) || !std::isfinite(det) ||
+            !(ul + half >= float(grid_x0_) && ul - half < grid_x1_ && vl + half >= float(grid_y0_) && vl - half < grid_y1_)) {
+            lanes &= ~(1u << lane);
+            continue;
+        }
+        ProjectedSplat& ps = out[lane];
+        ps.u = ul;
+        ps.v = vl;
+        ps.conic[0] = float(conic_of[0][lane]);
+        ps.conic[1] = float(conic_of[1][lane]);
+        ps.conic[2] = float(conic_of[2][lane]);
+        ps.opacity = op_of[lane];
+        ps.depth = z_of[lane];
+        ps.half_extent = half;
+        ps.least_power = std::log(kMinAlpha / op_of[lane]) - kLeastPowerMargin;
+    }
+    return lanes;
+}
+
 bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel) {
     // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
     // by scene order), sorted. The projections are kept for the gather, which would otherwise project every visible
@@ -217,13 +350,31 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     // (W A)^T of each set, W the world-to-camera rotation and A the set's linear part.
     std::vector<glm::mat3> wa_t(s_.gaussians.size());
     for (std::size_t k = 0; k < wa_t.size(); ++k) wa_t[k] = glm::transpose(world_to_camera_ * s_.gaussians[k]->linear);
-    for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
-        ProjectedSplat& ps = projected[set_base[k] + j];
-        if (!project(set, wa_t[k], std::uint32_t(j), ps)) return;
+    // RAYSPLATS_PROJECTION=scalar: project() alone (the tests compare the two).
+    const char* path = std::getenv("RAYSPLATS_PROJECTION");
+    const bool simd = !(path && std::string(path) == "scalar");
+    const auto key_of = [&](std::size_t index) {
         std::uint32_t depth_bits;
-        std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
-        keys[set_base[k] + j] = std::uint64_t(depth_bits) << 32 | (set_base[k] + j);
-    });
+        std::memcpy(&depth_bits, &projected[index].depth, sizeof depth_bits);
+        return std::uint64_t(depth_bits) << 32 | index;
+    };
+    for (std::size_t k = 0; k < s_.gaussians.size(); ++k) {
+        const GaussianSet& set = *s_.gaussians[k];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.prims.size(), 4096),
+                          [&](const tbb::blocked_range<std::size_t>& r) {
+                              if (is_cancelled(cancel)) return;
+                              std::size_t j = r.begin();
+                              for (; simd && j + 4 <= r.end(); j += 4) {
+                                  const std::size_t first = set_base[k] + j;
+                                  for (unsigned lanes = project4(set, wa_t[k], std::uint32_t(j), &projected[first]);
+                                       lanes; lanes &= lanes - 1)
+                                      keys[first + __builtin_ctz(lanes)] = key_of(first + __builtin_ctz(lanes));
+                              }
+                              for (; j != r.end(); ++j)
+                                  if (project(set, wa_t[k], std::uint32_t(j), projected[set_base[k] + j]))
+                                      keys[set_base[k] + j] = key_of(set_base[k] + j);
+                          });
+    }
     if (is_cancelled(cancel)) return false;
     keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
     sort_by_high_word(keys);  // (the low words are the global indices, ascending)

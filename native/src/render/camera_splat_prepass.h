@@ -78,6 +78,9 @@ private:
     // Projects Gaussian `prim` of `set`, whose (W A)^T is `wa_t` (W: world to camera, A: the set's linear part): false
     // when it is culled (near, far, faint, degenerate, off the grid).
     bool project(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim, ProjectedSplat& out) const;
+    // project() of primitives prim .. prim + 3 at once, bit for bit: returns the mask of the visible ones (out[lane]
+    // written for those).
+    unsigned project4(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim, ProjectedSplat* out) const;
     // Every Gaussian projected once, by global index (set_base[k] + j: primitive j of set k; the culled ones' entries
     // unwritten), and the visible Gaussians' keys, depth above global index, sorted; false when cancelled.
     bool sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel);
