@@ -1,0 +1,84 @@
+# Camera Rays as Splats' pre-pass and samples of showroom_1.5M at 640 x 360 (1 sample, sorted, Blackman-Harris 1.5),
+# from far (the whole scene) and facing, in the CPU seconds the core reports for each (median of --frames), with the
+# scene keeping its storage between frames as Persistent Data does. Given two builds of the native module (--b), it
+# renders with each in turn, alternating frame by frame in one process, so that a busy or slowing machine weighs on
+# both alike; it prints each build's medians, tile-list entries and a hash of the image (equal hashes: the same image
+# bit for bit).
+#   blender -b --factory-startup --python examples/benchmark_camera_splat_prepass.py -- \
+#       --a addon/raysplats/_native.cpython-311-x86_64-linux-gnu.so [--b OTHER_BUILD.so] [--frames 10]
+import argparse
+import hashlib
+import importlib.machinery
+import importlib.util
+import os
+import sys
+import time
+import types
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+parser = argparse.ArgumentParser()
+parser.add_argument("--a", required=True, help="a native module file (_native.cpython-*.so)")
+parser.add_argument("--b", help="another build of it to compare with")
+parser.add_argument("--data", default=os.path.join(HERE, "..", "..", "shared", "data"))
+parser.add_argument("--frames", type=int, default=10)
+parser.add_argument("--views", default="far,facing")
+args = parser.parse_args(argv)
+
+
+def load(name, path):
+    """The module file at `path` under a package of its own, so that two builds load side by side."""
+    sys.modules[name] = types.ModuleType(name)
+    loader = importlib.machinery.ExtensionFileLoader(name + "._native", path)
+    module = importlib.util.module_from_spec(importlib.util.spec_from_file_location(name + "._native", path,
+                                                                                     loader=loader))
+    loader.exec_module(module)
+    return module
+
+
+builds = {"A": load("build_a", args.a)}
+if args.b:
+    builds["B"] = load("build_b", args.b)
+cloud = builds["A"].read_splats(os.path.join(args.data, "showroom_1.5M.ply"))
+low, high = np.percentile(cloud["positions"], 2, axis=0), np.percentile(cloud["positions"], 98, axis=0)
+facing = np.eye(4, dtype=np.float32)
+facing[:3, :3] = np.array([[1, 0, 0], [0, -1, 0], [0, 0, -1]], np.float32)
+facing[:3, 3] = (low + high) / 2 - np.array([0, 0, float(np.max(high - low))])
+VIEWS = {  # the showroom GUI test's F12 camera (the whole scene, far), and the file's +Z at the middle 96 %
+    "far": {"matrix": np.array([[1, 0, 0, -16.242052], [0, 1, 0, 98.567497], [0, 0, 1, 639.995117], [0, 0, 0, 1]],
+                               np.float32), "type": "PERSP", "lens": 50.0, "sensor_width": 36.0, "clip_start": 0.1,
+            "clip_end": 1e4},
+    "facing": {"matrix": facing, "type": "PERSP", "lens": 30.0, "sensor_width": 36.0, "sensor_fit": "HORIZONTAL",
+               "clip_start": 0.01, "clip_end": 1e4},
+}
+SETTINGS = {"width": 640, "height": 360, "samples": 1, "compositing": "SORTED", "seed": 0,
+            "pixel_filter": "BLACKMAN_HARRIS", "filter_width": 1.5, "camera_ray_splatting": True}
+
+scenes = {}
+for name, module in builds.items():
+    scene = module.RenderScene()
+    scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"])
+    scene.set_keep_frame_buffers(True)
+    module.RenderJob(scene, VIEWS["far"], dict(SETTINGS, width=64, height=36)).result()  # (the BVH built)
+    scenes[name] = (module, scene)
+
+print(f"showroom_1.5M, 640 x 360, 1 sample, median of {args.frames} frames, CPU s, load {os.getloadavg()[0]:.2f}")
+for view in args.views.split(","):
+    figures = {name: [] for name in scenes}
+    result = {}
+    for frame in range(args.frames):
+        for name in sorted(scenes, reverse=frame % 2 == 1):
+            module, scene = scenes[name]
+            start = time.process_time()
+            film = module.RenderJob(scene, VIEWS[view], SETTINGS).result()
+            figures[name].append((time.process_time() - start, film["splat_prepass_cpu_seconds"],
+                                  film["sample_cpu_seconds"]))
+            result[name] = film
+    for name in sorted(scenes):
+        total, prepass, samples = np.median(np.array(figures[name]), axis=0)
+        film = result[name]
+        print(f"{view:7} {name}  frame {total:.4f}  pre-pass {prepass:.4f}  samples {samples:.4f}  "
+              f"splats {film['splats']:,}  entries {film['splat_tile_entries']:,}  "
+              f"image {hashlib.md5(np.asarray(film['rgba']).tobytes()).hexdigest()[:12]}", flush=True)
