@@ -35,6 +35,15 @@ Camera pinhole() {
     return cam;
 }
 
+// A sun of power 1 whose light travels up the world's +Y axis (its local -Z turned to +Y).
+Light sun_from_below() {
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.power = 1.0f;
+    sun.light_to_world = Matrix4::rotation(1.5707963f, 1, 0, 0);
+    return sun;
+}
+
 RenderSettings splat_settings(bool splatting, BlendSpace space = BlendSpace::Display,
                               GaussianMode mode = GaussianMode::Volumetric) {
     RenderSettings s;
@@ -408,11 +417,7 @@ TEST(CameraSplatting, MeshesShadowGaussiansAsTraced) {
         if (blocked) scene.add_mesh(box.desc());
         scene.add_gaussians(cloud);
         scene.set_world(black_world());
-        Light sun;
-        sun.type = LightType::Sun;
-        sun.power = 1.0f;
-        sun.light_to_world = Matrix4::rotation(1.5707963f, 1, 0, 0);  // local -Z to world +Y
-        scene.add_light(sun);
+        scene.add_light(sun_from_below());
         RenderSettings on = splat_settings(true), off = splat_settings(false);
         on.meshes_shadow_gaussians = off.meshes_shadow_gaussians = true;
         const Film splatted = render(scene, pinhole(), on), traced = render(scene, pinhole(), off);
@@ -477,11 +482,7 @@ TEST(CameraSplatting, MovedMeshesAreWhereTheyAreNow) {
         scene.add_mesh(box.desc());
         scene.add_gaussians(cloud);
         scene.set_world(black_world());
-        Light sun;
-        sun.type = LightType::Sun;
-        sun.power = 1.0f;
-        sun.light_to_world = Matrix4::rotation(1.5707963f, 1, 0, 0);  // local -Z to world +Y
-        scene.add_light(sun);
+        scene.add_light(sun_from_below());
     };
     RenderSettings st = splat_settings(true);
     st.meshes_shadow_gaussians = true;

@@ -1,7 +1,9 @@
 #include "camera_splat_prepass.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -215,19 +217,20 @@ bool CameraSplatPrepass::project(const GaussianSet& set, const glm::mat3& wa_t, 
 unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim,
                                       ProjectedSplat* out) const {
     const GaussianPrimitive* g = &set.prims[prim];
-    // Each primitive is four quads: (centre, opacity), (row 0, -), (row 1, thin scale), (row 2, -).
-    __m128 cx = _mm_loadu_ps(&g[0].center.x), cy = _mm_loadu_ps(&g[1].center.x), cz = _mm_loadu_ps(&g[2].center.x),
-           op = _mm_loadu_ps(&g[3].center.x);
-    _MM_TRANSPOSE4_PS(cx, cy, cz, op);
-    __m128 r0x = _mm_loadu_ps(&g[0].row0.x), r0y = _mm_loadu_ps(&g[1].row0.x), r0z = _mm_loadu_ps(&g[2].row0.x),
-           unused0 = _mm_loadu_ps(&g[3].row0.x);
-    _MM_TRANSPOSE4_PS(r0x, r0y, r0z, unused0);
-    __m128 r1x = _mm_loadu_ps(&g[0].row1.x), r1y = _mm_loadu_ps(&g[1].row1.x), r1z = _mm_loadu_ps(&g[2].row1.x),
-           thin = _mm_loadu_ps(&g[3].row1.x);
-    _MM_TRANSPOSE4_PS(r1x, r1y, r1z, thin);
-    __m128 r2x = _mm_loadu_ps(&g[0].row2.x), r2y = _mm_loadu_ps(&g[1].row2.x), r2z = _mm_loadu_ps(&g[2].row2.x),
-           unused2 = _mm_loadu_ps(&g[3].row2.x);
-    _MM_TRANSPOSE4_PS(r2x, r2y, r2z, unused2);
+    // Each primitive is four quads: (centre, opacity), (row 0, -), (row 1, thin scale), (row 2, -). quad(q)[c] is
+    // component c of quad q of the four primitives.
+    static_assert(offsetof(GaussianPrimitive, opacity) == 12 && offsetof(GaussianPrimitive, thin_scale) == 44,
+                  "the quads of GaussianPrimitive");
+    const auto quad = [g](int q) {
+        std::array<__m128, 4> v;
+        for (int l = 0; l < 4; ++l) v[l] = _mm_loadu_ps(reinterpret_cast<const float*>(&g[l]) + 4 * q);
+        _MM_TRANSPOSE4_PS(v[0], v[1], v[2], v[3]);
+        return v;
+    };
+    const std::array<__m128, 4> centre = quad(0), row0 = quad(1), row1 = quad(2), row2 = quad(3);
+    const __m128 cx = centre[0], cy = centre[1], cz = centre[2], op = centre[3], thin = row1[3];
+    const __m128 r0x = row0[0], r0y = row0[1], r0z = row0[2], r1x = row1[0], r1y = row1[1], r1z = row1[2];
+    const __m128 r2x = row2[0], r2y = row2[1], r2z = row2[2];
     const auto set1 = [](float v) { return _mm_set1_ps(v); };
     const auto add = [](__m128 a, __m128 b) { return _mm_add_ps(a, b); };
     const auto sub = [](__m128 a, __m128 b) { return _mm_sub_ps(a, b); };
