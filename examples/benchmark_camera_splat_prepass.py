@@ -2,8 +2,8 @@
 # from far (the whole scene) and facing, in the CPU seconds the core reports for each (median of --frames), with the
 # scene keeping its storage between frames as Persistent Data does. Given two builds of the native module (--b), it
 # renders with each in turn, alternating frame by frame in one process, so that a busy or slowing machine weighs on
-# both alike; it prints each build's medians, tile-list entries and a hash of the image (equal hashes: the same image
-# bit for bit).
+# both alike, and makes the two scenes in one order for half the frames and in the other for the rest; it prints each
+# build's medians, tile-list entries and a hash of the image (equal hashes: the same image bit for bit).
 #   blender -b --factory-startup --python examples/benchmark_camera_splat_prepass.py -- \
 #       --a addon/raysplats/_native.cpython-311-x86_64-linux-gnu.so [--b OTHER_BUILD.so] [--frames 10]
 import argparse
@@ -56,29 +56,42 @@ VIEWS = {  # the showroom GUI test's F12 camera (the whole scene, far), and the 
 SETTINGS = {"width": 640, "height": 360, "samples": 1, "compositing": "SORTED", "seed": 0,
             "pixel_filter": "BLACKMAN_HARRIS", "filter_width": 1.5, "camera_ray_splatting": True}
 
-scenes = {}
-for name, module in builds.items():
-    scene = module.RenderScene()
-    scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"])
-    scene.set_keep_frame_buffers(True)
-    module.RenderJob(scene, VIEWS["far"], dict(SETTINGS, width=64, height=36)).result()  # (the BVH built)
-    scenes[name] = (module, scene)
+
+def make_scenes(order):
+    """A scene of the whole file per build, made in `order` (the one made first renders a few percent slower here,
+    whichever build it is: the two halves of the run make them in opposite orders)."""
+    made = {}
+    for name in order:
+        module = builds[name]
+        scene = module.RenderScene()
+        scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"])
+        scene.set_keep_frame_buffers(True)
+        module.RenderJob(scene, VIEWS["far"], dict(SETTINGS, width=64, height=36)).result()  # (the BVH built)
+        made[name] = (module, scene)
+    return made
+
 
 print(f"showroom_1.5M, 640 x 360, 1 sample, median of {args.frames} frames, CPU s, load {os.getloadavg()[0]:.2f}")
-for view in args.views.split(","):
-    figures = {name: [] for name in scenes}
-    result = {}
-    for frame in range(args.frames):
-        for name in sorted(scenes, reverse=frame % 2 == 1):
-            module, scene = scenes[name]
-            start = time.process_time()
-            film = module.RenderJob(scene, VIEWS[view], SETTINGS).result()
-            figures[name].append((time.process_time() - start, film["splat_prepass_cpu_seconds"],
-                                  film["sample_cpu_seconds"]))
-            result[name] = film
-    for name in sorted(scenes):
-        total, prepass, samples = np.median(np.array(figures[name]), axis=0)
-        film = result[name]
+names = sorted(builds)
+views = args.views.split(",")
+figures = {(view, name): [] for view in views for name in names}
+result = {}
+for half in (0, 1):
+    scenes = make_scenes(names if half == 0 else names[::-1])
+    for view in views:
+        for frame in range((args.frames + 1 - half) // 2):
+            for name in sorted(scenes, reverse=frame % 2 == 1):
+                module, scene = scenes[name]
+                start = time.process_time()
+                film = module.RenderJob(scene, VIEWS[view], SETTINGS).result()
+                figures[view, name].append((time.process_time() - start, film["splat_prepass_cpu_seconds"],
+                                            film["sample_cpu_seconds"]))
+                result[view, name] = film
+    del scenes
+for view in views:
+    for name in names:
+        total, prepass, samples = np.median(np.array(figures[view, name]), axis=0)
+        film = result[view, name]
         print(f"{view:7} {name}  frame {total:.4f}  pre-pass {prepass:.4f}  samples {samples:.4f}  "
               f"splats {film['splats']:,}  entries {film['splat_tile_entries']:,}  "
               f"image {hashlib.md5(np.asarray(film['rgba']).tobytes()).hexdigest()[:12]}", flush=True)

@@ -285,8 +285,10 @@ unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& w
     }
     // glm::dot(a, b) = (a.x b.x + a.y b.y) + a.z b.z, in float; the sums in double.
     __m128d a[2], b[2], c[2];
-    for (int h = 0; h < 2; ++h) a[h] = b[h] = c[h] = _mm_setzero_pd();
-    for (int h = 0; h < 2; ++h) a[h] = c[h] = _mm_set1_pd(double(kDilation));
+    for (int h = 0; h < 2; ++h) {
+        a[h] = c[h] = _mm_set1_pd(double(kDilation));
+        b[h] = _mm_setzero_pd();
+    }
     for (int k = 0; k < 3; ++k) {
         const __m128 k0 = add(add(mul(r0[0], l[k][0]), mul(r0[1], l[k][1])), mul(r0[2], l[k][2]));
         const __m128 k1 = add(add(mul(r1[0], l[k][0]), mul(r1[1], l[k][1])), mul(r1[2], l[k][2]));
