@@ -417,41 +417,12 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
     }
 }
 
-SplatEllipse::SplatEllipse(double a, double b, double c, double r) : b_(b), det_(a * c - b * b) {
-    definite_ = a > 0.0 && c > 0.0 && det_ > 0.0 && r >= 0.0 && std::isfinite(det_) && std::isfinite(r);
-    if (!definite_) return;
-    // At the extreme points the gradient 2 (C d) is along an axis: the rightmost point has b x + c y = 0, and
-    // q = r there gives x = sqrt(r c / det); likewise |y| <= sqrt(r a / det).
-    inv_a_ = 1.0 / a;
-    ar_ = a * r;
-    y_half_ = std::sqrt(r * a / det_);
-    x_half_ = std::sqrt(r * c / det_);
-    y_at_right_ = -b * x_half_ / c;
-}
-
-bool SplatEllipse::row_extent(double y0, double y1, double& x0, double& x1) const {
-    if (!definite_) {
-        x0 = -std::numeric_limits<double>::infinity();
-        x1 = std::numeric_limits<double>::infinity();
-        return y0 <= y1;
-    }
-    if (y0 > y1 || y0 > y_half_ || y1 < -y_half_) return false;
-    // For a given y the ellipse spans x = (-b y -+ s(y)) / a, s(y) = sqrt(a r - det y^2). The right end is concave in
-    // y and greatest at the rightmost point, the left end convex and least at the leftmost, so over the band each is
-    // extreme at that point's y clamped into the band (the band holds both points of a small splat's row: no root).
-    const double yr = std::clamp(y_at_right_, y0, y1), yl = std::clamp(-y_at_right_, y0, y1);
-    const auto s = [&](double y) { return std::sqrt(std::max(0.0, ar_ - det_ * y * y)); };
-    x1 = yr == y_at_right_ ? x_half_ : (-b_ * yr + s(yr)) * inv_a_;
-    x0 = yl == -y_at_right_ ? -x_half_ : (-b_ * yl - s(yl)) * inv_a_;
-    return true;
-}
-
 // The tiles a splat can draw in: those whose samples its square reaches where alpha can reach 1/255, i.e. where
 // q(d) = d^T Sigma'^-1 d <= 2 ln(255 a) (a exp(-q / 2) >= 1/255) somewhere on the tile widened by the samples' pad.
 // Outside that ellipse every sample skips the splat anyway, so leaving it out of those tiles changes no image; it keeps
 // thin and faint Gaussians out of most of their square's tiles. The pad lets a packet read only the lists of its
 // pixels' tile, wherever jitter put its samples (a list per tile a sample fell in cost a packet 2-4 reads).
-CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLists& lists,
+inline CameraSplatPrepass::TileSquare CameraSplatPrepass::tile_square(const SplatTileLists& lists,
                                                                const ProjectedSplat& ps) const {
     // (Tile sizes are powers of two: the product by the reciprocal is the quotient, exactly.)
     const float inv_size = 1.0f / float(lists.size);

@@ -11,7 +11,10 @@
 // reach.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <limits>
 #include <cstdint>
 #include <vector>
 
@@ -40,6 +43,36 @@ private:
     double y_at_right_ = 0.0;             // y of its rightmost point (its leftmost is (-x_half_, -y_at_right_))
     bool definite_ = false;
 };
+
+// (Defined here, inline: the binning calls them for every splat and row.)
+inline SplatEllipse::SplatEllipse(double a, double b, double c, double r) : b_(b), det_(a * c - b * b) {
+    definite_ = a > 0.0 && c > 0.0 && det_ > 0.0 && r >= 0.0 && std::isfinite(det_) && std::isfinite(r);
+    if (!definite_) return;
+    // At the extreme points the gradient 2 (C d) is along an axis: the rightmost point has b x + c y = 0, and
+    // q = r there gives x = sqrt(r c / det); likewise |y| <= sqrt(r a / det).
+    inv_a_ = 1.0 / a;
+    ar_ = a * r;
+    y_half_ = std::sqrt(r * a / det_);
+    x_half_ = std::sqrt(r * c / det_);
+    y_at_right_ = -b * x_half_ / c;
+}
+
+inline bool SplatEllipse::row_extent(double y0, double y1, double& x0, double& x1) const {
+    if (!definite_) {
+        x0 = -std::numeric_limits<double>::infinity();
+        x1 = std::numeric_limits<double>::infinity();
+        return y0 <= y1;
+    }
+    if (y0 > y1 || y0 > y_half_ || y1 < -y_half_) return false;
+    // For a given y the ellipse spans x = (-b y -+ s(y)) / a, s(y) = sqrt(a r - det y^2). The right end is concave in
+    // y and greatest at the rightmost point, the left end convex and least at the leftmost, so over the band each is
+    // extreme at that point's y clamped into the band (the band holds both points of a small splat's row: no root).
+    const double yr = std::clamp(y_at_right_, y0, y1), yl = std::clamp(-y_at_right_, y0, y1);
+    const auto s = [&](double y) { return std::sqrt(std::max(0.0, ar_ - det_ * y * y)); };
+    x1 = yr == y_at_right_ ? x_half_ : (-b_ * yr + s(yr)) * inv_a_;
+    x0 = yl == -y_at_right_ ? -x_half_ : (-b_ * yl - s(yl)) * inv_a_;
+    return true;
+}
 
 class CameraSplatPrepass {
 public:
