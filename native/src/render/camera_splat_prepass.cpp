@@ -1,7 +1,6 @@
 #include "camera_splat_prepass.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdlib>
@@ -13,14 +12,13 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <immintrin.h>
-
 #include "core/radix_sort.h"
 #include "gaussian_callbacks.h"
 #include "gaussian_primitives.h"
 #include "pixel_filter.h"
 #include "raysplats/errors.h"
 #include "render_math.h"
+#include "simd.h"
 
 namespace raysplats {
 
@@ -217,25 +215,27 @@ bool CameraSplatPrepass::project(const GaussianSet& set, const glm::mat3& wa_t, 
 unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim,
                                       ProjectedSplat* out) const {
     const GaussianPrimitive* g = &set.prims[prim];
-    // Each primitive is four quads: (centre, opacity), (row 0, -), (row 1, thin scale), (row 2, -). quad(q)[c] is
-    // component c of quad q of the four primitives.
+    // Each primitive is four quads: (centre, opacity), (row 0, -), (row 1, thin scale), (row 2, -). quad(q, v) puts
+    // component c of quad q of the four primitives in v[c].
     static_assert(offsetof(GaussianPrimitive, opacity) == 12 && offsetof(GaussianPrimitive, thin_scale) == 44,
                   "the quads of GaussianPrimitive");
-    const auto quad = [g](int q) {
-        std::array<__m128, 4> v;
+    const auto quad = [g](int q, __m128 (&v)[4]) {
         for (int l = 0; l < 4; ++l) v[l] = _mm_loadu_ps(reinterpret_cast<const float*>(&g[l]) + 4 * q);
         _MM_TRANSPOSE4_PS(v[0], v[1], v[2], v[3]);
-        return v;
     };
-    const std::array<__m128, 4> centre = quad(0), row0 = quad(1), row1 = quad(2), row2 = quad(3);
+    __m128 centre[4], row0[4], row1[4], row2[4];
+    quad(0, centre);
+    quad(1, row0);
+    quad(2, row1);
+    quad(3, row2);
     const __m128 cx = centre[0], cy = centre[1], cz = centre[2], op = centre[3], thin = row1[3];
     const __m128 r0x = row0[0], r0y = row0[1], r0z = row0[2], r1x = row1[0], r1y = row1[1], r1z = row1[2];
     const __m128 r2x = row2[0], r2y = row2[1], r2z = row2[2];
-    const auto set1 = [](float v) { return _mm_set1_ps(v); };
-    const auto add = [](__m128 a, __m128 b) { return _mm_add_ps(a, b); };
-    const auto sub = [](__m128 a, __m128 b) { return _mm_sub_ps(a, b); };
-    const auto mul = [](__m128 a, __m128 b) { return _mm_mul_ps(a, b); };
-    const auto div = [](__m128 a, __m128 b) { return _mm_div_ps(a, b); };
+    // (Sse's operations: each one IEEE instruction; Sse::madd is not used, so nothing is fused on any machine.)
+    using S = Sse;
+    const auto set1 = S::set1;
+    const auto add = S::add, sub = S::sub, mul = S::mul, div = S::div;
+    const auto neg = S::neg;
     // glm: (m * v)[i] = m[0][i] v.x + m[1][i] v.y + m[2][i] v.z, summed left to right.
     const auto mat_vec = [&](const glm::mat3& m, int i, __m128 x, __m128 y, __m128 z) {
         return add(add(mul(set1(m[0][i]), x), mul(set1(m[1][i]), y)), mul(set1(m[2][i]), z));
@@ -246,14 +246,13 @@ unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& w
     const __m128 dy = sub(add(mat_vec(set.linear, 1, cx, cy, cz), set1(set.translation.y)), set1(camera_origin_.y));
     const __m128 dz = sub(add(mat_vec(set.linear, 2, cx, cy, cz), set1(set.translation.z)), set1(camera_origin_.z));
     const __m128 px = mat_vec(world_to_camera_, 0, dx, dy, dz), py = mat_vec(world_to_camera_, 1, dx, dy, dz);
-    const __m128 z = _mm_xor_ps(mat_vec(world_to_camera_, 2, dx, dy, dz), set1(-0.0f));
+    const __m128 z = neg(mat_vec(world_to_camera_, 2, dx, dy, dz));
     visible = _mm_and_ps(visible, _mm_and_ps(_mm_cmpgt_ps(z, set1(near_)), _mm_cmplt_ps(z, set1(far_))));
     // L = M^-1, M[c][r] = row r's component c (glm's inverse, term for term); l[k] is L's column k.
     const __m128 m00 = r0x, m01 = r1x, m02 = r2x, m10 = r0y, m11 = r1y, m12 = r2y, m20 = r0z, m21 = r1z, m22 = r2z;
     const __m128 one_over_det =
         div(set1(1.0f), add(sub(mul(m00, sub(mul(m11, m22), mul(m21, m12))), mul(m10, sub(mul(m01, m22), mul(m21, m02)))),
                             mul(m20, sub(mul(m01, m12), mul(m11, m02)))));
-    const auto neg = [](__m128 a) { return _mm_xor_ps(a, _mm_set1_ps(-0.0f)); };
     __m128 l[3][3];  // [column][row]
     l[0][0] = mul(sub(mul(m11, m22), mul(m21, m12)), one_over_det);
     l[1][0] = mul(neg(sub(mul(m10, m22), mul(m20, m12))), one_over_det);
@@ -268,7 +267,7 @@ unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& w
         for (int r = 0; r < 3; ++r) l[2][r] = mul(l[2][r], thin);
     // std::clamp(v, lo, hi) = v < lo ? lo : (hi < v ? hi : v)
     const auto clamp = [](__m128 v, float lo, float hi) {
-        const __m128 vlo = _mm_set1_ps(lo), vhi = _mm_set1_ps(hi);
+        const __m128 vlo = Sse::set1(lo), vhi = Sse::set1(hi);
         const __m128 below = _mm_cmplt_ps(v, vlo), above = _mm_cmplt_ps(vhi, v);
         const __m128 upper = _mm_or_ps(_mm_and_ps(above, vhi), _mm_andnot_ps(above, v));
         return _mm_or_ps(_mm_and_ps(below, vlo), _mm_andnot_ps(below, upper));
@@ -457,14 +456,14 @@ void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const Projec
     constexpr double kSlack = 1e-4;  // px
     const SplatEllipse ellipse(ps.conic[0], ps.conic[1], ps.conic[2], reach * (1.0 + 1e-6));
     const double left = double(grid_x0_) - double(ps.u) - pad;  // tile column 0's left edge, widened, from the centre
+    // Just around the square: a row's extent is clamped to this first (x0 and x1 can be infinite).
+    const double lo = left + double(sq.tx0 - 1) * size, hi = left + double(sq.tx1 + 2) * size;
     for (int ty = sq.ty0; ty <= sq.ty1; ++ty) {
         const double ly = double(grid_y0_ + ty * size) - ps.v - pad, hy = ly + size + 2.0 * pad;
         double x0, x1;
         if (!ellipse.row_extent(ly - kSlack, hy + kSlack, x0, x1)) continue;
         // Column tx spans [left + tx size, left + tx size + size + 2 pad]: it meets [x0, x1] from the first column
-        // whose right edge reaches x0 to the last whose left edge is at most x1 (clamped to just around the square
-        // first: x0 and x1 can be infinite).
-        const double lo = left + double(sq.tx0 - 1) * size, hi = left + double(sq.tx1 + 2) * size;
+        // whose right edge reaches x0 to the last whose left edge is at most x1.
         const double first = (std::clamp(x0 - kSlack, lo, hi) - left - 2.0 * pad) * inv_size - 1.0;
         const double last = (std::clamp(x1 + kSlack, lo, hi) - left) * inv_size;
         const int tx0 = std::max(sq.tx0, ceil_int(first)), tx1 = std::min(sq.tx1, floor_int(last));
