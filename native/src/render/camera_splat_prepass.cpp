@@ -232,10 +232,14 @@ unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& w
     const __m128 r0x = row0[0], r0y = row0[1], r0z = row0[2], r1x = row1[0], r1y = row1[1], r1z = row1[2];
     const __m128 r2x = row2[0], r2y = row2[1], r2z = row2[2];
     // (Sse's operations: each one IEEE instruction; Sse::madd is not used, so nothing is fused on any machine.)
+    // (Lambdas, not pointers to the functions: a call through a pointer is not always inlined.)
     using S = Sse;
-    const auto set1 = S::set1;
-    const auto add = S::add, sub = S::sub, mul = S::mul, div = S::div;
-    const auto neg = S::neg;
+    const auto set1 = [](float s) { return S::set1(s); };
+    const auto add = [](__m128 a, __m128 b) { return S::add(a, b); };
+    const auto sub = [](__m128 a, __m128 b) { return S::sub(a, b); };
+    const auto mul = [](__m128 a, __m128 b) { return S::mul(a, b); };
+    const auto div = [](__m128 a, __m128 b) { return S::div(a, b); };
+    const auto neg = [](__m128 a) { return S::neg(a); };
     // glm: (m * v)[i] = m[0][i] v.x + m[1][i] v.y + m[2][i] v.z, summed left to right.
     const auto mat_vec = [&](const glm::mat3& m, int i, __m128 x, __m128 y, __m128 z) {
         return add(add(mul(set1(m[0][i]), x), mul(set1(m[1][i]), y)), mul(set1(m[2][i]), z));
