@@ -35,6 +35,21 @@ TEST(RadixSort, EqualsAComparisonSortOfTheWholeKeys) {
     }
 }
 
+TEST(RadixSort, AKeptScratchBufferSortsAsAFreshOne) {
+    // The pre-pass keeps its keys and the other buffer between frames; a sort may leave them swapped, and the next
+    // frame has more or fewer keys.
+    std::vector<std::uint64_t> keys, scratch;
+    for (const std::size_t n : {std::size_t(100000), std::size_t(1000), std::size_t(50000), std::size_t(2)}) {
+        for (const std::uint32_t mask : {0xffffffffu, 0x003ff800u}) {
+            keys = keys_in_index_order(n, mask, unsigned(n) + mask);
+            std::vector<std::uint64_t> expected = keys;
+            std::sort(expected.begin(), expected.end());
+            sort_by_high_word(keys, scratch);
+            EXPECT_EQ(keys, expected) << "mask " << mask << ", " << n << " keys";
+        }
+    }
+}
+
 TEST(RadixSort, PositiveFloatDepthsSortAsTheirBitPatterns) {
     // The camera pre-pass's keys: a positive float's bits above the index.
     std::mt19937 rng(7);

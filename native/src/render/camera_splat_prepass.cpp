@@ -351,7 +351,7 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
     // by scene order), sorted. The projections are kept for the gather, which would otherwise project every visible
     // Gaussian a second time (the projection is most of this pass).
-    std::vector<std::uint64_t>& keys = b_.keys;
+    SplatArray<std::uint64_t>& keys = b_.keys;
     SplatArray<ProjectedSplat>& projected = b_.projected;
     keys.assign(set_base.back(), kNotVisibleKey);
     size_for_overwrite(projected, set_base.back());
@@ -385,7 +385,7 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     }
     if (is_cancelled(cancel)) return false;
     keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
-    sort_by_high_word(keys);  // (the low words are the global indices, ascending)
+    sort_by_high_word(keys, b_.sort_scratch);  // (the low words are the global indices, ascending)
     return true;
 }
 
@@ -393,7 +393,7 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
                                 const std::atomic<bool>* cancel) {
     // The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
     // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
-    const std::vector<std::uint64_t>& keys = b_.keys;
+    const SplatArray<std::uint64_t>& keys = b_.keys;
     const SplatArray<ProjectedSplat>& projected = b_.projected;
     std::vector<std::uint32_t>& rank_of = b_.rank_of;
     rank_of.assign(set_base.back(), kNotVisible);
@@ -415,6 +415,7 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
     // (The samples do not read the working arrays: a scene that does not keep the storage frees these now.)
     if (!s_.keep_frame_buffers) {
         b_.keys = {};
+        b_.sort_scratch = {};
         b_.projected = {};
         b_.rank_of = {};
     }
@@ -575,12 +576,13 @@ std::size_t CameraSplatBuffers::frame_bytes() const {
 }
 
 std::size_t CameraSplatBuffers::capacity_bytes() const {
-    return frame_bytes() + capacity_of(keys) + capacity_of(projected) + capacity_of(rank_of) + capacity_of(level) +
+    return frame_bytes() + capacity_of(keys) + capacity_of(sort_scratch) + capacity_of(projected) + capacity_of(rank_of) + capacity_of(level) +
            capacity_of(starts) + capacity_of(reached);
 }
 
 void CameraSplatBuffers::release_working_arrays() {
     keys = {};
+    sort_scratch = {};
     projected = {};
     rank_of = {};
     level = {};
