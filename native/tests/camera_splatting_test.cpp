@@ -587,3 +587,53 @@ TEST(CameraSplatting, KeptFrameBuffersRenderAsAFreshScene) {
     kept.set_keep_frame_buffers(false);
     EXPECT_EQ(kept.kept_frame_buffer_bytes(), 0u);
 }
+
+// A kept scene also keeps the render's tiles, and the next render of the same size and passes restarts them in their
+// memory: every channel, the Cryptomatte ranks, adaptive sampling's noise sums and the light passes' sums are as a
+// fresh render's, bit for bit, the frame after a frame of another view and after one of another size.
+TEST(CameraSplatting, KeptTilesRestartAsNewTiles) {
+    const GaussianCloud cloud = random_cloud(13, 600, 1.0f);
+    Scene kept, fresh;
+    for (Scene* scene : {&kept, &fresh}) {
+        scene->add_gaussians(cloud, Matrix4::translation(0.0f, 0.0f, -4.0f));
+        scene->set_world(black_world());
+        scene->set_gaussian_cryptomatte_names(0, "splats", "", "");
+    }
+    kept.set_keep_frame_buffers(true);
+    RenderSettings st = splat_settings(true);
+    st.width = 72;
+    st.height = 56;
+    st.tile_size = 32;  // (several tiles, one of them cut by the image's edge)
+    st.samples = 20;
+    st.jitter = true;
+    st.light_passes = true;
+    st.cryptomatte_object = true;
+    st.adaptive_sampling = true;
+    st.adaptive_threshold = 0.5f;
+    st.adaptive_min_samples = 16;  // (its first check is after 16 samples)
+    RenderSettings other_size = st;
+    other_size.width = 40;
+    Camera near_view = pinhole(), far_view = pinhole();
+    near_view.camera_to_world = Matrix4::translation(0.8f, -0.4f, -2.0f);
+    far_view.camera_to_world = Matrix4::translation(0.0f, 0.0f, 6.0f);
+    const std::pair<Camera, RenderSettings> frames[] = {
+        {pinhole(), st}, {near_view, st}, {far_view, st}, {pinhole(), other_size}, {near_view, st}};
+    for (const auto& [camera, settings] : frames) {
+        const Film again = render(kept, camera, settings);
+        const Film reference = render(fresh, camera, settings);
+        for (const FilmChannelInfo& info : film_channels())
+            EXPECT_EQ(again[info.channel], reference[info.channel]) << info.key;
+        EXPECT_EQ(again.cryptomatte, reference.cryptomatte);
+        EXPECT_EQ(again.stats.samples, reference.stats.samples);
+        // (What the tiles sum is there: ids with weights, and pixels that adaptive sampling stopped early.)
+        const FloatBuffer& ids = reference.cryptomatte[std::size_t(CryptomatteType::Object)];
+        float weights = 0.0f;
+        for (std::size_t k = 1; k < ids.size(); k += 2) weights += ids[k];
+        EXPECT_GT(weights, 0.0f);
+        const FloatBuffer& counts = reference[FilmChannel::SampleCount];
+        EXPECT_LT(*std::min_element(counts.begin(), counts.end()), float(settings.samples));
+    }
+    EXPECT_EQ(fresh.kept_frame_buffer_bytes(), 0u);
+    kept.set_keep_frame_buffers(false);
+    EXPECT_EQ(kept.kept_frame_buffer_bytes(), 0u);
+}

@@ -267,21 +267,52 @@ void Film::clear(int x0, int y0, int x1, int y1) {
 
 FilmTile::FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte,
                    const FilmChannelSet& channels)
-    : x0_(x0), y0_(y0), x1_(x1), y1_(y1), cryptomatte_layout_(cryptomatte) {
-    const std::size_t pixels = std::size_t(x1 - x0) * std::size_t(y1 - y0);
+    : x0_(x0), y0_(y0), x1_(x1), y1_(y1), noise_estimates_(noise_estimates), channels_(channels),
+      cryptomatte_layout_(cryptomatte) {
+    restart();
+}
+
+void FilmTile::restart() {
+    const std::size_t pixels = std::size_t(x1_ - x0_) * std::size_t(y1_ - y0_);
     // Sums start at 0; first samples at the empty value, which pixels no camera ray reaches keep (outside a
-    // fisheye's circle, for example). A channel left out stays empty, and add_sample and write_to skip it.
-    for (const FilmChannelInfo& info : film_channels())
-        if (channels[std::size_t(info.channel)])
-            values_[std::size_t(info.channel)].assign(
-            std::size_t(info.component_count()) * pixels,
-            info.combination == SampleCombination::FirstSample ? info.empty_value : 0.0f);
-    counts_.assign(pixels, 0u);
-    if (noise_estimates) odd_radiance_.assign(3 * pixels, 0.0f);
-    if (cryptomatte.on()) {
-        for (bool on : cryptomatte.types) cryptomatte_types_ += on ? 1 : 0;
-        cryptomatte_.assign(pixels * std::size_t(cryptomatte_types_) * 2 * std::size_t(cryptomatte.ranks), 0.0f);
+    // fisheye's circle, for example). A channel left out stays empty, and add_sample and write_to skip it. (assign
+    // keeps a vector's memory when it is big enough: a restarted tile writes into the pages it had.)
+    for (const FilmChannelInfo& info : film_channels()) {
+        std::vector<float>& values = values_[std::size_t(info.channel)];
+        if (channels_[std::size_t(info.channel)])
+            values.assign(std::size_t(info.component_count()) * pixels,
+                          info.combination == SampleCombination::FirstSample ? info.empty_value : 0.0f);
+        else
+            values.clear();
     }
+    counts_.assign(pixels, 0u);
+    if (noise_estimates_) odd_radiance_.assign(3 * pixels, 0.0f);
+    else odd_radiance_.clear();
+    // (Made by the first sample that has them.)
+    display_sums_.clear();
+    odd_display_sums_.clear();
+    light_passes_ = false;
+    front_emission_sums_.clear();
+    cryptomatte_types_ = 0;
+    cryptomatte_.clear();
+    if (cryptomatte_layout_.on()) {
+        for (bool on : cryptomatte_layout_.types) cryptomatte_types_ += on ? 1 : 0;
+        cryptomatte_.assign(pixels * std::size_t(cryptomatte_types_) * 2 * std::size_t(cryptomatte_layout_.ranks), 0.0f);
+    }
+}
+
+bool FilmTile::made_for(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte,
+                        const FilmChannelSet& channels) const {
+    return x0 == x0_ && y0 == y0_ && x1 == x1_ && y1 == y1_ && noise_estimates == noise_estimates_ &&
+           channels == channels_ && cryptomatte.types == cryptomatte_layout_.types &&
+           cryptomatte.ranks == cryptomatte_layout_.ranks;
+}
+
+std::size_t FilmTile::capacity_bytes() const {
+    std::size_t floats = odd_radiance_.capacity() + display_sums_.capacity() + odd_display_sums_.capacity() +
+                         front_emission_sums_.capacity() + cryptomatte_.capacity();
+    for (const std::vector<float>& values : values_) floats += values.capacity();
+    return sizeof(float) * floats + sizeof(std::uint32_t) * counts_.capacity();
 }
 
 // Cycles' film_write_cryptomatte_slots, per type: an id already held gains the weight, a new one takes the first free

@@ -166,16 +166,26 @@ private:
 };
 
 // Sample pass `sample`: every tile renders its next sample, the tiles in parallel. A tile's state is created by the
-// thread that renders its first pass (parallel first touch of its sums).
+// thread that renders its first pass (parallel first touch of its sums), or is the last render's tile `kept[t]`
+// restarted when it was made for the same pixels and passes.
 void render_pass(int sample, const TileGrid& grid, const TileSampler& sampler, bool noise_estimates,
                  const CryptomatteLayout& cryptomatte, const FilmChannelSet& channels,
-                 std::vector<std::unique_ptr<TileState>>& tiles, PassProgress& progress, RenderCounters& counters) {
+                 std::vector<std::unique_ptr<TileState>>& tiles, std::vector<std::unique_ptr<TileState>>& kept,
+                 PassProgress& progress, RenderCounters& counters) {
     tbb::parallel_for(tbb::blocked_range<int>(0, grid.count, 1), [&](const tbb::blocked_range<int>& range) {
         for (int t = range.begin(); t != range.end(); ++t) {
             // Polled per tile and pass (at most 32 x 32 samples): a cancelled tile keeps its completed passes.
             if (progress.cancelled()) continue;
             std::unique_ptr<TileState>& tile = tiles[std::size_t(t)];
-            if (!tile) tile = std::make_unique<TileState>(grid.rect(t), noise_estimates, cryptomatte, channels);
+            if (!tile) {
+                std::unique_ptr<TileState>& last = t < int(kept.size()) ? kept[std::size_t(t)] : tile;
+                if (last && last->made_for(grid.rect(t), noise_estimates, cryptomatte, channels)) {
+                    last->restart();
+                    tile = std::move(last);
+                } else {
+                    tile = std::make_unique<TileState>(grid.rect(t), noise_estimates, cryptomatte, channels);
+                }
+            }
             Counters tile_counters;
             if (sampler.samples(*tile)) counters.camera_samples += sampler.sample(*tile, tile_counters);
             tile->samples_done = sample + 1;
@@ -242,7 +252,12 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
                               impl.has_motion());
     PassProgress pass_progress(progress, cancel, double(grid.count) * double(settings.samples));
     RenderCounters counters;
-    std::vector<std::unique_ptr<TileState>> tiles(static_cast<std::size_t>(grid.count));
+    std::vector<std::unique_ptr<TileState>> tiles(static_cast<std::size_t>(grid.count)), kept;
+    if (impl.keep_frame_buffers) {  // the last render's tiles: restarted, their sums are in the pages they had
+        const std::lock_guard<std::mutex> lock(impl.frame_buffers_mutex);
+        kept = std::move(impl.frame_tiles);
+        impl.frame_tiles.clear();
+    }
 
     // Sample passes: every tile renders sample k before any renders k + 1, so that after each pass the film is a
     // whole image (progressive display; a cancelled render keeps the passes done). A pixel's samples, their seeds and
@@ -252,7 +267,7 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     RenderStats& stats = film.stats;
     for (int sample = 0; sample < settings.samples; ++sample) {
         PhaseClock sample_clock(stats.sample_seconds, stats.sample_cpu_seconds);
-        render_pass(sample, grid, sampler, adaptive.on(), cryptomatte, channels, tiles, pass_progress, counters);
+        render_pass(sample, grid, sampler, adaptive.on(), cryptomatte, channels, tiles, kept, pass_progress, counters);
         // A pass counts when every tile finished it, even if a cancel came after the last one did.
         const bool complete = pass_progress.tile_passes_done() >= (long long)(sample + 1) * grid.count;
         if (complete) samples_done = sample + 1;
@@ -278,6 +293,11 @@ Film render(Scene& scene, const Camera& camera, const RenderSettings& settings, 
     film.stats.cancelled = pass_progress.was_cancelled();
     film.stats.samples = samples_done;
     counters.write_to(film.stats);
+    if (impl.keep_frame_buffers) {
+        // (Of two renders of one scene at once, the tiles of the one that ends last are kept.)
+        const std::lock_guard<std::mutex> lock(impl.frame_buffers_mutex);
+        impl.frame_tiles = std::move(tiles);
+    }
     film.stats.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return film;
 }

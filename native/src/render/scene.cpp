@@ -17,6 +17,7 @@
 #include "raysplats/render/cryptomatte.h"
 #include "render_math.h"
 #include "scene_impl.h"
+#include "tile_sampler.h"
 
 namespace raysplats {
 namespace {
@@ -703,11 +704,15 @@ void Scene::set_keep_frame_buffers(bool keep) {
     if (keep) return;
     const std::lock_guard<std::mutex> lock(impl_->frame_buffers_mutex);
     impl_->frame_buffers.reset();
+    impl_->frame_tiles.clear();
 }
 
 std::size_t Scene::kept_frame_buffer_bytes() const {
     const std::lock_guard<std::mutex> lock(impl_->frame_buffers_mutex);
-    return impl_->frame_buffers ? impl_->frame_buffers->capacity_bytes() : 0;
+    std::size_t bytes = impl_->frame_buffers ? impl_->frame_buffers->capacity_bytes() : 0;
+    for (const std::unique_ptr<TileState>& tile : impl_->frame_tiles)
+        if (tile) bytes += tile->samples.capacity_bytes() + sizeof(float) * tile->segment_end.capacity();
+    return bytes;
 }
 
 Scene::BuildReport Scene::last_build() const { return impl_->report; }

@@ -16,6 +16,8 @@
 
 namespace raysplats {
 
+struct TileState;  // (tile_sampler.h)
+
 struct MeshRecord {
     MeshDesc desc;
     std::vector<float> padded_vertices;  // only when the caller's array is not padded (see MeshDesc)
@@ -101,6 +103,9 @@ struct Scene::Impl {
     bool keep_frame_buffers = false;
     mutable std::mutex frame_buffers_mutex;
     mutable std::unique_ptr<CameraSplatBuffers> frame_buffers;
+    // The last render's tiles (render(), under the same mutex), for the next render of the same region and passes
+    // to sample into (TileState::restart).
+    mutable std::vector<std::unique_ptr<TileState>> frame_tiles;
 
     // Whether some mesh or Gaussian cloud has motion (Scene::has_motion).
     bool has_motion() const;

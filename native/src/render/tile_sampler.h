@@ -4,6 +4,7 @@
 // the path integrator follows one by one (path_integrator.h).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -25,6 +26,16 @@ struct TileState {
               const FilmChannelSet& channels = all_film_channels())
         : samples(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte, channels),
           segment_end(std::size_t(r.width()) * std::size_t(r.height()), kInf) {}
+    // Whether it was made with these arguments, and back to what they made, in the memory it has.
+    bool made_for(const PixelRect& r, bool noise_estimates, const CryptomatteLayout& cryptomatte,
+                  const FilmChannelSet& channels) const {
+        return samples.made_for(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte, channels);
+    }
+    void restart() {
+        samples.restart();
+        std::fill(segment_end.begin(), segment_end.end(), kInf);
+        samples_done = 0;
+    }
     FilmTile samples;
     std::vector<float> segment_end;
     int samples_done = 0;

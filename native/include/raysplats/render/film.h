@@ -259,6 +259,14 @@ public:
     // `channels` are summed (the film written to holds at least those).
     FilmTile(int x0, int y0, int x1, int y1, bool noise_estimates = false, const CryptomatteLayout& cryptomatte = {},
              const FilmChannelSet& channels = all_film_channels());
+    // Back to what the constructor made, keeping the memory: a scene that keeps its frame buffers
+    // (Scene::set_keep_frame_buffers) starts its next render in the tiles of the last, same pixels, same arguments.
+    void restart();
+    // Whether the constructor was given these arguments.
+    bool made_for(int x0, int y0, int x1, int y1, bool noise_estimates, const CryptomatteLayout& cryptomatte,
+                  const FilmChannelSet& channels) const;
+    // Bytes its sums hold.
+    std::size_t capacity_bytes() const;
     // Sample number `sample` of film pixel (x, y): the pixel's samples so far, sample_count(x, y).
     void add_sample(int x, int y, int sample, const SampleRecord& record);
     // A sample of film pixel (x, y) whose camera ray does not exist (jittered outside a fisheye's circle): it counts,
@@ -294,6 +302,8 @@ private:
     void complete_light_passes(Film& film) const;
     std::size_t index(int x, int y) const { return std::size_t(y - y0_) * std::size_t(x1_ - x0_) + std::size_t(x - x0_); }
     int x0_, y0_, x1_, y1_;
+    bool noise_estimates_;
+    FilmChannelSet channels_;
     std::array<std::vector<float>, kFilmChannelCount> values_;  // sums (Mean, Sum) or first samples (FirstSample)
     std::vector<std::uint32_t> counts_;  // samples per pixel
     std::vector<float> odd_radiance_;    // RGB sums of the odd-numbered samples (noise_estimates only)
