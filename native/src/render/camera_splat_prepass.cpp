@@ -441,8 +441,7 @@ template <typename Visit>
 void CameraSplatPrepass::for_each_tile(const SplatTileLists& lists, const ProjectedSplat& ps, const TileSquare& sq,
                                        Visit&& visit) const {
     // A square of at most 3 x 3 tiles: each of them. The ellipse would leave out a few of its tiles, but finding them
-    // costs more than the test with which those tiles' samples skip the splat (in a far view of showroom_1.5M, the
-    // square adds a third to the fine entries and takes a fifth off the pre-pass; the samples take 5 % longer).
+    // costs more than the test with which those tiles' samples skip the splat (docs/benchmarks.md has the figures).
     if (sq.tx1 - sq.tx0 < 3 && sq.ty1 - sq.ty0 < 3) {
         for (int ty = sq.ty0; ty <= sq.ty1; ++ty)
             for (int tx = sq.tx0; tx <= sq.tx1; ++tx)
