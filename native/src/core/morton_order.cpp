@@ -2,6 +2,7 @@
 #include "core/morton_order.h"
 
 #include "core/radix_sort.h"
+#include "raysplats/default_init_allocator.h"
 
 #include <tbb/parallel_for.h>
 
@@ -27,7 +28,7 @@ std::vector<std::uint32_t> morton_order(const GaussianCloud& c) {
         v = (v | (v << 2)) & 0x9249249;
         return v;
     };
-    std::vector<std::uint64_t> keyed(n);
+    std::vector<std::uint64_t, DefaultInitAllocator<std::uint64_t>> keyed(n);  // (written in parallel below)
     tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
         const glm::vec3 p(c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]);
         const glm::vec3 q = glm::clamp((p - lo) / extent, 0.0f, 1.0f) * 1023.0f;

@@ -7,8 +7,6 @@
 #include <cstdint>
 #include <vector>
 
-#include "raysplats/default_init_allocator.h"
-
 namespace raysplats {
 
 // Sorts `keys` ascending. Precondition: their low words ascend in the given order (each key's low word is its

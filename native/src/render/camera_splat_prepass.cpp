@@ -386,6 +386,7 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     if (is_cancelled(cancel)) return false;
     keys.erase(std::remove(keys.begin(), keys.end(), kNotVisibleKey), keys.end());
     sort_by_high_word(keys, b_.sort_scratch);  // (the low words are the global indices, ascending)
+    if (!s_.keep_frame_buffers) b_.sort_scratch = {};
     return true;
 }
 
@@ -415,7 +416,6 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool d
     // (The samples do not read the working arrays: a scene that does not keep the storage frees these now.)
     if (!s_.keep_frame_buffers) {
         b_.keys = {};
-        b_.sort_scratch = {};
         b_.projected = {};
         b_.rank_of = {};
     }
@@ -575,8 +575,8 @@ std::size_t CameraSplatBuffers::frame_bytes() const {
 }
 
 std::size_t CameraSplatBuffers::capacity_bytes() const {
-    return frame_bytes() + capacity_of(keys) + capacity_of(sort_scratch) + capacity_of(projected) + capacity_of(rank_of) + capacity_of(level) +
-           capacity_of(starts) + capacity_of(reached);
+    return frame_bytes() + capacity_of(keys) + capacity_of(sort_scratch) + capacity_of(projected) +
+           capacity_of(rank_of) + capacity_of(level) + capacity_of(starts) + capacity_of(reached);
 }
 
 void CameraSplatBuffers::release_working_arrays() {

@@ -294,10 +294,11 @@ void FilmTile::restart() {
     light_passes_ = false;
     front_emission_sums_.clear();
     cryptomatte_types_ = 0;
-    cryptomatte_.clear();
     if (cryptomatte_layout_.on()) {
         for (bool on : cryptomatte_layout_.types) cryptomatte_types_ += on ? 1 : 0;
         cryptomatte_.assign(pixels * std::size_t(cryptomatte_types_) * 2 * std::size_t(cryptomatte_layout_.ranks), 0.0f);
+    } else {
+        cryptomatte_.clear();
     }
 }
 

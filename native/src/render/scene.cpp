@@ -711,7 +711,7 @@ std::size_t Scene::kept_frame_buffer_bytes() const {
     const std::lock_guard<std::mutex> lock(impl_->frame_buffers_mutex);
     std::size_t bytes = impl_->frame_buffers ? impl_->frame_buffers->capacity_bytes() : 0;
     for (const std::unique_ptr<TileState>& tile : impl_->frame_tiles)
-        if (tile) bytes += tile->samples.capacity_bytes() + sizeof(float) * tile->segment_end.capacity();
+        if (tile) bytes += tile->capacity_bytes();
     return bytes;
 }
 

@@ -31,6 +31,7 @@ struct TileState {
                   const FilmChannelSet& channels) const {
         return samples.made_for(r.x0, r.y0, r.x1, r.y1, noise_estimates, cryptomatte, channels);
     }
+    std::size_t capacity_bytes() const { return samples.capacity_bytes() + sizeof(float) * segment_end.capacity(); }
     void restart() {
         samples.restart();
         std::fill(segment_end.begin(), segment_end.end(), kInf);
