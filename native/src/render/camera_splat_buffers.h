@@ -71,10 +71,9 @@ struct CameraSplatBuffers {
     SplatArray<SplatSource> sources;
     SplatTileLists coarse, fine;
     // Working arrays: every Gaussian's sort key (and the sort's other buffer) and projection by global index, each
-    // one's rank in the sort, each splat's level (coarse or fine), the binning's per-chunk counts and each splat's tiles.
+    // splat's level (coarse or fine), the binning's per-chunk counts and each splat's tiles.
     SplatArray<std::uint64_t> keys, sort_scratch;
     SplatArray<ProjectedSplat> projected;
-    std::vector<std::uint32_t> rank_of;
     SplatArray<std::uint8_t> level;
     std::vector<std::uint32_t> starts;
     SplatArray<ReachedTiles> reached;

@@ -38,7 +38,7 @@ int filter_margin(const RenderSettings& st) {
     return (reach + 3) / 4 * 4;
 }
 
-// Not a rank (rank_of), not a key (keys).
+// Not a Gaussian's global index (the prepass indexes them in 32 bits), not a key (keys).
 constexpr std::uint32_t kNotVisible = 0xffffffffu;
 constexpr std::uint64_t kNotVisibleKey = ~std::uint64_t(0);
 
@@ -101,9 +101,9 @@ CameraSplatPrepass::CameraSplatPrepass(const Scene::Impl& scene, const RenderSet
     if (total >= std::size_t(kNotVisible))
         throw Error("camera-ray splatting: " + std::to_string(total) + " Gaussians are more than it indexes (2^32 - 1)");
 
-    if (!sorted_keys(set_base, cancel) || is_cancelled(cancel)) return;
     // The camera ray's SH direction is camera -> centre (GaussianSet::display_color with the camera's origin).
-    gather(set_base, settings.blend_space == BlendSpace::Display, cancel);
+    if (!sorted_keys(set_base, settings.blend_space == BlendSpace::Display, cancel) || is_cancelled(cancel)) return;
+    gather(set_base, cancel);
     if (is_cancelled(cancel)) return;
 
     // Tile lists, two levels. A 4 x 4 packet of camera rays reads the list of its 16 px tile, and in a zoomed-out
@@ -347,7 +347,8 @@ unsigned CameraSplatPrepass::project4(const GaussianSet& set, const glm::mat3& w
     return lanes;
 }
 
-bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel) {
+bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, bool display,
+                                     const std::atomic<bool>* cancel) {
     // The visible Gaussians' keys, depth above global index (positive floats order as their bit patterns; ties go
     // by scene order), sorted. The projections are kept for the gather, which would otherwise project every visible
     // Gaussian a second time (the projection is most of this pass).
@@ -361,9 +362,14 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     // RAYSPLATS_PROJECTION=scalar: project() alone (the tests compare the two).
     const char* path = std::getenv("RAYSPLATS_PROJECTION");
     const bool simd = !(path && std::string(path) == "scalar");
-    const auto key_of = [&](std::size_t index) {
+    const glm::vec3 origin = camera_origin_;
+    // A visible Gaussian's key, and its colour (the same for every camera sample), computed here in the scene's order
+    // so that the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
+    const auto key_of = [&](const GaussianSet& set, std::uint32_t prim, std::size_t index) {
+        ProjectedSplat& ps = projected[index];
+        ps.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
         std::uint32_t depth_bits;
-        std::memcpy(&depth_bits, &projected[index].depth, sizeof depth_bits);
+        std::memcpy(&depth_bits, &ps.depth, sizeof depth_bits);
         return std::uint64_t(depth_bits) << 32 | index;
     };
     for (std::size_t k = 0; k < s_.gaussians.size(); ++k) {
@@ -375,12 +381,14 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
                               for (; simd && j + 4 <= r.end(); j += 4) {
                                   const std::size_t first = set_base[k] + j;
                                   for (unsigned lanes = project4(set, wa_t[k], std::uint32_t(j), &projected[first]);
-                                       lanes; lanes &= lanes - 1)
-                                      keys[first + __builtin_ctz(lanes)] = key_of(first + __builtin_ctz(lanes));
+                                       lanes; lanes &= lanes - 1) {
+                                      const unsigned lane = unsigned(__builtin_ctz(lanes));
+                                      keys[first + lane] = key_of(set, std::uint32_t(j + lane), first + lane);
+                                  }
                               }
                               for (; j != r.end(); ++j)
                                   if (project(set, wa_t[k], std::uint32_t(j), projected[set_base[k] + j]))
-                                      keys[set_base[k] + j] = key_of(set_base[k] + j);
+                                      keys[set_base[k] + j] = key_of(set, std::uint32_t(j), set_base[k] + j);
                           });
     }
     if (is_cancelled(cancel)) return false;
@@ -390,34 +398,33 @@ bool CameraSplatPrepass::sorted_keys(const std::vector<std::size_t>& set_base, c
     return true;
 }
 
-void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, bool display,
-                                const std::atomic<bool>* cancel) {
-    // The splats in depth order, with their colours (the same for every camera sample). Written in the scene's
-    // order, each to its rank: the Gaussians' data (SH up to 192 bytes each) is read in order, not at random.
+void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel) {
+    // The splats in depth order: each rank's projection read from its Gaussian's place (fetched kAhead ranks before
+    // its turn: the places are at random), written in order.
     const SplatArray<std::uint64_t>& keys = b_.keys;
     const SplatArray<ProjectedSplat>& projected = b_.projected;
-    std::vector<std::uint32_t>& rank_of = b_.rank_of;
-    rank_of.assign(set_base.back(), kNotVisible);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) rank_of[keys[i] & 0xffffffffu] = std::uint32_t(i);
-    });
     size_for_overwrite(b_.splats, keys.size());
     size_for_overwrite(b_.sources, keys.size());
-    const glm::vec3 origin = camera_origin_;
-    for_each_gaussian(s_, cancel, [&](std::size_t k, const GaussianSet& set, std::size_t j) {
-        const std::uint32_t rank = rank_of[set_base[k] + j];
-        if (rank == kNotVisible) return;
-        const auto prim = std::uint32_t(j);
-        ProjectedSplat& splat = b_.splats[rank];
-        splat = projected[set_base[k] + j];
-        splat.color = display ? set.display_color(prim, origin) : set.color(prim, origin);
-        b_.sources[rank] = SplatSource{set.index, prim};
+    constexpr std::size_t kAhead = 16;
+    const std::size_t sets = set_base.size() - 1;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+        if (is_cancelled(cancel)) return;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            if (i + kAhead < r.end()) __builtin_prefetch(&projected[keys[i + kAhead] & 0xffffffffu]);
+            const std::size_t index = keys[i] & 0xffffffffu;
+            b_.splats[i] = projected[index];
+            // The set holding global index `index`: the last k with set_base[k] <= index (a search without branches,
+            // as the sets of consecutive ranks are at random).
+            std::size_t k = 0;
+            for (std::size_t step = std::size_t(1) << (63 - __builtin_clzll(sets | 1)); step; step >>= 1)
+                k = k + step < sets && set_base[k + step] <= index ? k + step : k;
+            b_.sources[i] = SplatSource{s_.gaussians[k]->index, std::uint32_t(index - set_base[k])};
+        }
     });
     // (The samples do not read the working arrays: a scene that does not keep the storage frees these now.)
     if (!s_.keep_frame_buffers) {
         b_.keys = {};
         b_.projected = {};
-        b_.rank_of = {};
     }
 }
 
@@ -576,14 +583,13 @@ std::size_t CameraSplatBuffers::frame_bytes() const {
 
 std::size_t CameraSplatBuffers::capacity_bytes() const {
     return frame_bytes() + capacity_of(keys) + capacity_of(sort_scratch) + capacity_of(projected) +
-           capacity_of(rank_of) + capacity_of(level) + capacity_of(starts) + capacity_of(reached);
+           capacity_of(level) + capacity_of(starts) + capacity_of(reached);
 }
 
 void CameraSplatBuffers::release_working_arrays() {
     keys = {};
     sort_scratch = {};
     projected = {};
-    rank_of = {};
     level = {};
     starts = {};
     reached = {};

@@ -115,11 +115,12 @@ private:
     // written for those).
     unsigned project4(const GaussianSet& set, const glm::mat3& wa_t, std::uint32_t prim, ProjectedSplat* out) const;
     // Every Gaussian projected once, by global index (set_base[k] + j: primitive j of set k; the culled ones' entries
-    // unwritten), and the visible Gaussians' keys, depth above global index, sorted; false when cancelled.
-    bool sorted_keys(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel);
-    // The splats and their sources in the keys' order, with their colours (`display`: in display values); frees
-    // the keys and the projections unless the scene keeps the storage.
-    void gather(const std::vector<std::size_t>& set_base, bool display, const std::atomic<bool>* cancel);
+    // unwritten), the visible ones with their colours (`display`: in display values), and the visible Gaussians'
+    // keys, depth above global index, sorted; false when cancelled.
+    bool sorted_keys(const std::vector<std::size_t>& set_base, bool display, const std::atomic<bool>* cancel);
+    // The splats and their sources in the keys' order; frees the keys and the projections unless the scene keeps
+    // the storage.
+    void gather(const std::vector<std::size_t>& set_base, const std::atomic<bool>* cancel);
     // The tiles of `lists` a splat's square, widened by the samples' pad, covers: columns tx0..tx1, rows ty0..ty1.
     struct TileSquare {
         int tx0, ty0, tx1, ty1;
