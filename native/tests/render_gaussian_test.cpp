@@ -1,5 +1,5 @@
 // Gaussian compositing: exact single-Gaussian response, sorted gathering against a brute-force reference, and
-// stochastic compositing converging to the sorted image.
+// stochastic compositing converging to the sorted image; the groups the ray test reads, in their three widths.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "raysplats/render/renderer.h"
+#include "render/gaussian_primitives.h"
 #include "render_test_util.h"
 
 using namespace raysplats;
@@ -349,4 +350,88 @@ TEST(RenderGaussian, StochasticConvergesToSorted) {
     for (std::size_t i = 0; i < sorted_films[0].rgba().size(); ++i)
         se += std::pow(sorted_films[0].rgba()[i] - sorted_films[1].rgba()[i], 2);
     EXPECT_GT(std::sqrt(se / sorted_films[0].rgba().size()), 0.05);
+}
+
+// The groups are stored in three widths (GaussianGroups): every primID is found in its width's array, and every
+// group there holds its Gaussians' fields in its lanes and zero support in its padding; the groups cover the
+// Gaussians in order, each once. A cloud of scattered Gaussians (groups of one), clusters of three (four lanes) and
+// clusters of eight (eight lanes): all three widths are used, in less memory than eight lanes each. (That the ray test
+// gives the same bits in every width is what the golden films check: they were recorded with eight lanes for every
+// group.)
+TEST(RenderGaussian, GroupsInThreeWidthsHoldTheirGaussians) {
+    GaussianCloud cloud = random_cloud(11, 300, 5.0f);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-4.0f, 4.0f);
+    for (int size : {3, 8}) {
+        for (int cluster = 0; cluster < 20; ++cluster) {
+            const float centre[3] = {u(rng), u(rng), u(rng)};
+            for (int k = 0; k < size; ++k) {
+                const float p[3] = {centre[0], centre[1], centre[2] + 1e-3f * float(k)};
+                const float q[4] = {1.0f, 0.0f, 0.0f, 0.0f}, sc[3] = {0.01f, 0.01f, 0.01f}, c[3] = {0.5f, 0.5f, 0.5f};
+                add_gaussian(cloud, p, q, sc, 0.8f, c);
+            }
+        }
+    }
+    for (GaussianMode mode : {GaussianMode::Flat, GaussianMode::Volumetric}) {
+        GaussianSet set;
+        set.cloud = &cloud;
+        set.prepare(mode, false);
+        GaussianChunk chunk;
+        chunk.set = &set;
+        chunk.count = std::uint32_t(cloud.size());
+        set.build_groups(chunk);
+        const GaussianGroups& groups = chunk.groups;
+        ASSERT_EQ(groups.size(), chunk.group_bounds.size());
+        EXPECT_GT(groups.singles.size(), 0u);
+        EXPECT_GT(groups.quads.size(), 0u);
+        EXPECT_GT(groups.wide.size(), 0u);
+        EXPECT_EQ(groups.singles.size() + groups.quads.size() + groups.wide.size(), groups.size());
+        EXPECT_LT(groups.singles.size() * sizeof(GaussianSingle) + groups.quads.size() * sizeof(GaussianQuad) +
+                      groups.wide.size() * sizeof(GaussianGroup),
+                  groups.size() * sizeof(GaussianGroup) / 2);
+        std::vector<int> seen[3];  // the indices found in each width's array
+        std::uint32_t next = 0;    // the first Gaussian after the groups so far
+        const auto check = [&](const auto& g, std::uint32_t count, int lanes, std::uint32_t prim) {
+            EXPECT_GE(g.first, next) << "group " << prim;
+            next = g.first + count;
+            for (int lane = 0; lane < lanes; ++lane) {
+                if (std::uint32_t(lane) >= count) {
+                    EXPECT_EQ(g.support[lane], 0.0f) << "padding lane " << lane << " of group " << prim;
+                    continue;
+                }
+                const GaussianPrimitive& p = set.prims[g.first + lane];
+                const glm::vec3 rows[3] = {p.row0, p.row1, p.row2};
+                for (int a = 0; a < 3; ++a) {
+                    EXPECT_EQ(g.center[a][lane], p.center[a]);
+                    for (int r = 0; r < 3; ++r) EXPECT_EQ(g.row[3 * r + a][lane], rows[r][a]);
+                }
+                EXPECT_EQ(g.support[lane], p.support_sq);
+                EXPECT_EQ(g.opacity[lane], p.opacity);
+                EXPECT_EQ(g.cloud_index[lane], p.cloud_index);
+                EXPECT_GT(p.support_sq, 0.0f) << "a Gaussian that can never reach 1/255 is left out of the groups";
+            }
+        };
+        for (std::uint32_t prim = 0; prim < groups.size(); ++prim) {
+            const GaussianGroups::Location at = groups.locate(prim);
+            const int width = int(at.width);
+            seen[width].push_back(int(at.index));
+            if (at.width == GaussianGroups::Width::One) {
+                ASSERT_LT(at.index, groups.singles.size());
+                check(groups.singles[at.index], 1, 1, prim);
+            } else if (at.width == GaussianGroups::Width::Four) {
+                ASSERT_LT(at.index, groups.quads.size());
+                const GaussianQuad& g = groups.quads[at.index];
+                EXPECT_TRUE(g.count >= 2 && g.count <= 4) << "group " << prim;
+                check(g, g.count, 4, prim);
+            } else {
+                ASSERT_LT(at.index, groups.wide.size());
+                const GaussianGroup& g = groups.wide[at.index];
+                EXPECT_TRUE(g.count >= 5 && g.count <= 8) << "group " << prim;
+                check(g, g.count, kGroupWidth, prim);
+            }
+        }
+        // Each width's groups are found once each, in primID order.
+        for (int w = 0; w < 3; ++w)
+            for (std::size_t i = 0; i < seen[w].size(); ++i) EXPECT_EQ(seen[w][i], int(i)) << "width " << w;
+    }
 }

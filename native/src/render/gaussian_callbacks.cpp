@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "render_math.h"
 #include "simd.h"
@@ -22,12 +23,17 @@ void gaussians_bounds(const RTCBoundsFunctionArguments* args) {
                           : chunk->deformed_bounds[std::size_t(args->timeStep) * chunk->groups.size() + args->primID];
 }
 
-// The group a ray of time `time` is tested against: the chunk's own, or with deformation the group where that time
-// puts its Gaussians, made in `moved`.
-inline const GaussianGroup& group_at(const GaussianChunk& chunk, unsigned prim, float time, GaussianGroup& moved) {
-    if (chunk.deformed.empty()) return chunk.groups[prim];
-    chunk.set->deformed_group(chunk, prim, time, moved);
-    return moved;
+// The group a ray of time `time` is tested against: `g` itself, or with deformation (where every group is wide) the
+// group where that time puts its Gaussians, made in `moved`.
+template <class G>
+inline const G& group_at(const GaussianChunk& chunk, unsigned prim, const G& g, float time, G& moved) {
+    if constexpr (std::is_same_v<G, GaussianGroup>) {
+        if (!chunk.deformed.empty()) {
+            chunk.set->deformed_group(chunk, prim, time, moved);
+            return moved;
+        }
+    }
+    return g;
 }
 
 // Exact ray test against every lane of a group: returns the mask of lanes whose support (GaussianGroup::support)
@@ -46,21 +52,31 @@ __attribute__((always_inline)) inline typename S::V dot3(typename S::V ax, typen
     return S::madd(az, bz, S::madd(ay, by, S::mul(ax, bx)));
 }
 
-template <class S, bool Flat>
-__attribute__((always_inline)) inline unsigned test_group(const GaussianGroup& g, const glm::vec3& o,
-                                                          const glm::vec3& d, float tnear, float tfar, float* t_out,
-                                                          float* dist2_out) {
+// Field f of lanes [h, h + S::W) of a group of N lanes (GaussianLanes::fields); N == 1: the one lane's, in every
+// SIMD lane.
+template <class S, int N>
+__attribute__((always_inline)) inline typename S::V load_field(const float* fields, int f, int h) {
+    if constexpr (N == 1) return S::set1(fields[f]);
+    else return S::load(fields + f * N + h);
+}
+
+template <class S, bool Flat, class G>
+__attribute__((always_inline)) inline unsigned test_group(const G& g, const glm::vec3& o, const glm::vec3& d,
+                                                          float tnear, float tfar, float* t_out, float* dist2_out) {
     using V = typename S::V;
+    constexpr int N = int(sizeof(g.opacity) / sizeof(float));
+    static_assert(N == 1 || N % S::W == 0, "a group is a whole number of steps");
+    const float* f = g.fields();
     const V ox = S::set1(o.x), oy = S::set1(o.y), oz = S::set1(o.z);
     const V dx = S::set1(d.x), dy = S::set1(d.y), dz = S::set1(d.z);
     const V zero = S::set1(0.0f), lo = S::set1(tnear), hi = S::set1(tfar);
     unsigned mask = 0;
-    for (int h = 0; h < kGroupWidth; h += S::W) {
-        const V px = S::sub(ox, S::load(&g.center[0][h]));
-        const V py = S::sub(oy, S::load(&g.center[1][h]));
-        const V pz = S::sub(oz, S::load(&g.center[2][h]));
+    for (int h = 0; h < N; h += S::W) {
+        const V px = S::sub(ox, load_field<S, N>(f, 0, h));
+        const V py = S::sub(oy, load_field<S, N>(f, 1, h));
+        const V pz = S::sub(oz, load_field<S, N>(f, 2, h));
         V r[9];
-        for (int k = 0; k < 9; ++k) r[k] = S::load(&g.row[k][h]);
+        for (int k = 0; k < 9; ++k) r[k] = load_field<S, N>(f, 3 + k, h);
         V t, dist2, ok;
         if (Flat) {
             const V denom = dot3<S>(r[6], r[7], r[8], dx, dy, dz);
@@ -80,13 +96,13 @@ __attribute__((always_inline)) inline unsigned test_group(const GaussianGroup& g
             dist2 = dot3<S>(qu, qv, qw, qu, qv, qw);
             ok = S::ne(d2, zero);
         }
-        ok = S::and_(ok, S::le(dist2, S::load(&g.support[h])));
+        ok = S::and_(ok, S::le(dist2, load_field<S, N>(f, 12, h)));
         ok = S::and_(ok, S::and_(S::le(lo, t), S::le(t, hi)));
         S::store(t_out + h, t);
         S::store(dist2_out + h, dist2);
         mask |= S::bits(ok) << h;
     }
-    return mask;
+    return N == 1 ? mask & 1u : mask;
 }
 
 // Intersect callback for rtcIntersect1 and ray packets (any N, any order: each ray's state is ctx->lanes[id]).
@@ -99,12 +115,9 @@ __attribute__((always_inline)) inline unsigned test_group(const GaussianGroup& g
 // primitive of this geometry; context->instID[0] is the instance being traversed (a chunk's instance in the top
 // scene); the ray arrives in that instance's object space (the cloud's frame, where the groups are), with its
 // direction transformed but not normalised, so t means the same point as in world space.
-template <class S, bool Flat>
-__attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
-    auto* ctx = static_cast<TraceContext*>(args->context);
-    if (ctx->mode == TraceMode::MeshesOnly) return;
-    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
-    const GaussianGroup& g = chunk->groups[args->primID];
+template <class S, bool Flat, class G>
+__attribute__((always_inline)) inline void intersect_group(const RTCIntersectFunctionNArguments* args,
+                                                           TraceContext* ctx, const GaussianChunk* chunk, const G& g) {
     // Hits are identified by (top-level instance = chunk, primID in the chunk); rays arrive in object space.
     const std::uint32_t geom_id = args->context->instID[0];
     const unsigned n = args->N;
@@ -118,7 +131,7 @@ __attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFu
     // its own hits shrink it), so the images are the same.
     alignas(32) float ts[16][kGroupWidth], dist2s[16][kGroupWidth];
     unsigned masks[16];
-    GaussianGroup moved;  // (deformation: the group at a ray's time)
+    G moved;  // (deformation: the group at a ray's time)
     std::uint32_t active = 0;
     for (unsigned i = 0; i < n; ++i)
         active |= std::uint32_t(args->valid[i] != 0 && RTCRayN_id(ray, n, i) < ctx->lane_count) << i;
@@ -130,7 +143,7 @@ __attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFu
         ++L.group_candidates;
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
         const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
-        masks[i] = test_group<S, Flat>(group_at(*chunk, args->primID, RTCRayN_time(ray, n, i), moved), o, d,
+        masks[i] = test_group<S, Flat>(group_at(*chunk, args->primID, g, RTCRayN_time(ray, n, i), moved), o, d,
                                        RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), ts[i], dist2s[i]);
         with_candidates |= std::uint32_t(masks[i] != 0) << i;
     }
@@ -170,27 +183,39 @@ __attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFu
     }
 }
 
+// The group of primID in its width, tested with the path's policy S (eight lanes) or its four-lane policy.
+template <class S, bool Flat>
+__attribute__((always_inline)) inline void intersect_groups(const RTCIntersectFunctionNArguments* args) {
+    auto* ctx = static_cast<TraceContext*>(args->context);
+    if (ctx->mode == TraceMode::MeshesOnly) return;
+    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
+    const GaussianGroups::Location at = chunk->groups.locate(args->primID);
+    if (at.width == GaussianGroups::Width::Eight)
+        intersect_group<S, Flat>(args, ctx, chunk, chunk->groups.wide[at.index]);
+    else if (at.width == GaussianGroups::Width::Four)
+        intersect_group<typename Narrow<S>::type, Flat>(args, ctx, chunk, chunk->groups.quads[at.index]);
+    else
+        intersect_group<typename Narrow<S>::type, Flat>(args, ctx, chunk, chunk->groups.singles[at.index]);
+}
+
 // Occlusion callback: the transmittance of a shadow segment is the product of (1 - alpha) over the Gaussians
 // on it, in any order, so no sorting is needed. Reports occlusion only when it falls below the threshold, the way
 // Embree's occlusion queries report it: tfar set to -inf. Like the intersect callback it takes any N and finds each
 // ray's state by the ray's id (only rtcOccluded1 calls it today).
-template <class S, bool Flat>
-__attribute__((always_inline)) inline void occluded_groups(const RTCOccludedFunctionNArguments* args) {
-    auto* ctx = static_cast<TraceContext*>(args->context);
-    if (ctx->mode != TraceMode::Transmittance) return;
-    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
-    const GaussianGroup& g = chunk->groups[args->primID];
+template <class S, bool Flat, class G>
+__attribute__((always_inline)) inline void occluded_group(const RTCOccludedFunctionNArguments* args,
+                                                          TraceContext* ctx, const GaussianChunk* chunk, const G& g) {
     const unsigned n = args->N;
     RTCRayN* ray = args->ray;
     alignas(32) float ts[kGroupWidth], dist2s[kGroupWidth];
-    GaussianGroup moved;  // (deformation: the group at a ray's time)
+    G moved;  // (deformation: the group at a ray's time)
     for (unsigned i = 0; i < n; ++i) {
         if (!args->valid[i] || RTCRayN_id(ray, n, i) >= ctx->lane_count) continue;
         LaneState& L = ctx->lanes[RTCRayN_id(ray, n, i)];
         float& tfar = RTCRayN_tfar(ray, n, i);
         const glm::vec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
         const glm::vec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
-        const GaussianGroup& tested = group_at(*chunk, args->primID, RTCRayN_time(ray, n, i), moved);
+        const G& tested = group_at(*chunk, args->primID, g, RTCRayN_time(ray, n, i), moved);
         for (unsigned mask = test_group<S, Flat>(tested, o, d, RTCRayN_tnear(ray, n, i), tfar, ts, dist2s); mask;
              mask &= mask - 1) {
             const int lane = __builtin_ctz(mask);
@@ -204,6 +229,20 @@ __attribute__((always_inline)) inline void occluded_groups(const RTCOccludedFunc
             }
         }
     }
+}
+
+template <class S, bool Flat>
+__attribute__((always_inline)) inline void occluded_groups(const RTCOccludedFunctionNArguments* args) {
+    auto* ctx = static_cast<TraceContext*>(args->context);
+    if (ctx->mode != TraceMode::Transmittance) return;
+    const auto* chunk = static_cast<const GaussianChunk*>(args->geometryUserPtr);
+    const GaussianGroups::Location at = chunk->groups.locate(args->primID);
+    if (at.width == GaussianGroups::Width::Eight)
+        occluded_group<S, Flat>(args, ctx, chunk, chunk->groups.wide[at.index]);
+    else if (at.width == GaussianGroups::Width::Four)
+        occluded_group<typename Narrow<S>::type, Flat>(args, ctx, chunk, chunk->groups.quads[at.index]);
+    else
+        occluded_group<typename Narrow<S>::type, Flat>(args, ctx, chunk, chunk->groups.singles[at.index]);
 }
 
 // The callbacks Embree calls, per instruction set and mode: everything above is inlined into them (always_inline

@@ -54,6 +54,29 @@ float half_area(const glm::vec3& lower, const glm::vec3& upper) {
 
 }  // namespace
 
+void GaussianGroups::assign(const std::vector<Width>& widths) {
+    size_ = widths.size();
+    blocks_.assign((size_ + 63) / 64, Block{});
+    std::uint32_t wide_count = 0, quad_count = 0;
+    for (std::size_t b = 0; b < blocks_.size(); ++b) {
+        Block& block = blocks_[b];
+        block.wide_before = wide_count;
+        block.quads_before = quad_count;
+        for (std::size_t i = 64 * b; i < std::min(size_, 64 * b + 64); ++i) {
+            const std::uint64_t bit = std::uint64_t(1) << (i & 63u);
+            if (widths[i] == Width::Eight) block.wide |= bit, ++wide_count;
+            if (widths[i] == Width::Four) block.quads |= bit, ++quad_count;
+        }
+    }
+    // (clear first: resize would copy the old groups into a new allocation, writing pages the fill writes again.)
+    singles.clear();
+    quads.clear();
+    wide.clear();
+    singles.resize(size_ - wide_count - quad_count);
+    quads.resize(quad_count);
+    wide.resize(wide_count);
+}
+
 void GaussianSet::set_transform(const Matrix4& m) {
     object_to_world = m;
     linear = linear_part(m);
@@ -226,27 +249,50 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
     });
     std::vector<std::size_t> base(blocks + 1, 0);
     for (std::uint32_t b = 0; b < blocks; ++b) base[b + 1] = base[b] + specs[b].size();
-    chunk.groups.clear();
-    chunk.groups.resize(base[blocks]);  // (every field of every group is written below)
+    // Each group in the narrowest width that holds it; with deformation all are wide (DeformedLanes and
+    // deformed_group work on whole groups).
+    const bool all_wide = deformation.steps >= 2;
+    std::vector<GaussianGroups::Width> widths(base[blocks]);
+    for (std::uint32_t b = 0; b < blocks; ++b)
+        for (std::size_t k = 0; k < specs[b].size(); ++k) {
+            const std::uint32_t n = specs[b][k].count;
+            widths[base[b] + k] = all_wide || n > 4 ? GaussianGroups::Width::Eight
+                                  : n > 1           ? GaussianGroups::Width::Four
+                                                    : GaussianGroups::Width::One;
+        }
+    chunk.groups.assign(widths);  // (every field of every group is written below)
     chunk.group_bounds.resize(base[blocks]);
+    // Writes the lanes of a group of N lanes: the spec's Gaussians, then padding (zero rows fail the ray test: a zero
+    // denominator; zero support rejects the lane anyway).
+    const auto fill = [&](auto& g, const Spec& s) {
+        constexpr int lanes = int(sizeof(g.opacity) / sizeof(float));
+        for (int lane = 0; lane < lanes; ++lane) {
+            GaussianPrimitive p;
+            if (std::uint32_t(lane) < s.count) p = prims[chunk.offset + s.first + lane];
+            else std::memset(&p, 0, sizeof(p));
+            const glm::vec3 rows[3] = {p.row0, p.row1, p.row2};
+            for (int a = 0; a < 3; ++a) {
+                g.center[a][lane] = p.center[a];
+                for (int r = 0; r < 3; ++r) g.row[3 * r + a][lane] = rows[r][a];
+            }
+            g.support[lane] = std::uint32_t(lane) < s.count ? p.support_sq : 0.0f;
+            g.opacity[lane] = p.opacity;
+            g.cloud_index[lane] = p.cloud_index;
+        }
+        g.first = s.first;
+    };
     tbb::parallel_for(std::uint32_t(0), blocks, [&](std::uint32_t b) {
         for (std::size_t k = 0; k < specs[b].size(); ++k) {
             const Spec& s = specs[b][k];
-            GaussianGroup& g = chunk.groups[base[b] + k];
-            g.first = s.first;
-            g.count = s.count;
-            for (int lane = 0; lane < kGroupWidth; ++lane) {
-                GaussianPrimitive p;
-                if (std::uint32_t(lane) < s.count) p = prims[chunk.offset + s.first + lane];
-                else std::memset(&p, 0, sizeof(p));  // padding: zero rows fail the ray test (denominator 0)
-                const glm::vec3 rows[3] = {p.row0, p.row1, p.row2};
-                for (int a = 0; a < 3; ++a) {
-                    g.center[a][lane] = p.center[a];
-                    for (int r = 0; r < 3; ++r) g.row[3 * r + a][lane] = rows[r][a];
-                }
-                g.opacity[lane] = p.opacity;
-                g.cloud_index[lane] = p.cloud_index;
-                g.support[lane] = std::uint32_t(lane) < s.count ? p.support_sq : 0.0f;
+            const GaussianGroups::Location at = chunk.groups.locate(std::uint32_t(base[b] + k));
+            if (at.width == GaussianGroups::Width::Eight) {
+                fill(chunk.groups.wide[at.index], s);
+                chunk.groups.wide[at.index].count = s.count;
+            } else if (at.width == GaussianGroups::Width::Four) {
+                fill(chunk.groups.quads[at.index], s);
+                chunk.groups.quads[at.index].count = s.count;
+            } else {
+                fill(chunk.groups.singles[at.index], s);
             }
             RTCBounds& bb = chunk.group_bounds[base[b] + k];
             bb = RTCBounds{};
@@ -274,10 +320,12 @@ void GaussianSet::build_deformation(GaussianChunk& chunk) const {
     chunk.deformed.clear();
     chunk.deformed_bounds.clear();
     if (steps < 2) return;
+    // (Groups made before the deformation was set are regrouped, all wide.)
+    if (chunk.groups.wide.size() != groups) build_groups(chunk);
     chunk.deformed.assign(steps * groups, DeformedLanes{});
     chunk.deformed_bounds.assign(steps * groups, RTCBounds{});
     tbb::parallel_for(std::size_t(0), groups, [&](std::size_t gi) {
-        const GaussianGroup& g = chunk.groups[gi];
+        const GaussianGroup& g = chunk.groups.wide[gi];
         float reach[kGroupWidth] = {};
         for (std::uint32_t lane = 0; lane < g.count; ++lane) {
             const std::size_t i = g.cloud_index[lane];
@@ -321,7 +369,7 @@ void GaussianSet::build_deformation(GaussianChunk& chunk) const {
 // made as make_primitive makes them, in the first step's order of scales.
 void GaussianSet::deformed_group(const GaussianChunk& chunk, std::uint32_t group, float time,
                                  GaussianGroup& out) const {
-    const GaussianGroup& g = chunk.groups[group];
+    const GaussianGroup& g = chunk.groups.wide[group];  // (with deformation every group is wide)
     out = g;
     const std::size_t steps = deformation.steps, groups = chunk.groups.size();
     const float f = glm::clamp(time, 0.0f, 1.0f) * float(steps - 1);

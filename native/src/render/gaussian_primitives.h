@@ -53,18 +53,77 @@ static_assert(sizeof(GaussianPrimitive) == 64, "one cache line per Gaussian");
 // padding (zero rows and opacity: never a hit). Derived from GaussianSet::prims, which stays the source of truth.
 // Groups make frames and the BVH build faster, with the same images (bench_render; docs/benchmarks.md).
 constexpr int kGroupWidth = 8;
-struct alignas(32) GaussianGroup {
-    float center[3][kGroupWidth];  // [axis][lane]
-    float row[9][kGroupWidth];     // [3 * row + axis][lane]: rows 0..2 of GaussianPrimitive
-    float opacity[kGroupWidth];
-    std::uint32_t cloud_index[kGroupWidth];  // GaussianPrimitive::cloud_index (the stochastic draw's key)
+// The fields the ray test reads are the first 13 rows of N floats, field f of lane h at [f * N + h]: the centre's
+// axes (0-2), the rows (3-11), the support (12).
+template <int N>
+struct alignas(32) GaussianLanes {
+    float center[3][N];  // [axis][lane]
+    float row[9][N];     // [3 * row + axis][lane]: rows 0..2 of GaussianPrimitive
     // Squared Mahalanobis radius within which the Gaussian can reach alpha 1/255 (at most 9): lanes beyond it are
     // rejected by the SIMD test, before any exp (0 for padding lanes).
-    float support[kGroupWidth];
+    float support[N];
+    float opacity[N];
+    std::uint32_t cloud_index[N];  // GaussianPrimitive::cloud_index (the stochastic draw's key)
     // (No default member initialisers: the groups are allocated without being written, so that build_groups' parallel
-    // fill is the first touch of their pages; GaussianGroup{} is still all zeros.)
+    // fill is the first touch of their pages; a value-initialised group is still all zeros.)
     std::uint32_t first;           // chunk-local index of lane 0
     std::uint32_t count;           // Gaussians in the group, lanes [0, count)
+    const float* fields() const { return &center[0][0]; }
+};
+using GaussianGroup = GaussianLanes<kGroupWidth>;
+using GaussianQuad = GaussianLanes<4>;
+// A group of one Gaussian: the same fields, one lane, in one cache line (no room for the count, which is 1).
+template <>
+struct alignas(64) GaussianLanes<1> {
+    float center[3][1];
+    float row[9][1];
+    float support[1];
+    float opacity[1];
+    std::uint32_t cloud_index[1];
+    std::uint32_t first;
+    static constexpr std::uint32_t count = 1;
+    const float* fields() const { return &center[0][0]; }
+};
+using GaussianSingle = GaussianLanes<1>;
+static_assert(sizeof(GaussianSingle) == 64, "one cache line");
+
+// A chunk's groups, each stored in the narrowest of three widths that holds it: most groups of a real scene hold one
+// Gaussian or a few (on showroom_1.5M 46 % hold one and 17 % two to four), and eight lanes for each made the groups
+// the largest array of a scene (showroom_1.5M: 203 MB in eight lanes, 104 MB in three widths). The primIDs stay the groups' order (the BVH and the order in which a ray meets the
+// Gaussians do not depend on the widths); a primID is found in its width's array by rank: per 64 primIDs, the
+// masks of the wide and the four-lane groups among them and the number of each before them.
+class GaussianGroups {
+public:
+    enum class Width : std::uint8_t { One, Four, Eight };
+    struct Location {
+        Width width;
+        std::uint32_t index;  // in singles, quads or wide
+    };
+    std::size_t size() const { return size_; }
+    Location locate(std::uint32_t prim) const {
+        const Block& b = blocks_[prim >> 6];
+        const unsigned bit = prim & 63u;
+        const std::uint64_t below = (std::uint64_t(1) << bit) - 1;
+        const auto wide_below = std::uint32_t(__builtin_popcountll(b.wide & below));
+        const auto quads_below = std::uint32_t(__builtin_popcountll(b.quads & below));
+        if (b.wide >> bit & 1u) return {Width::Eight, b.wide_before + wide_below};
+        if (b.quads >> bit & 1u) return {Width::Four, b.quads_before + quads_below};
+        return {Width::One, prim - b.wide_before - b.quads_before - wide_below - quads_below};
+    }
+    // Makes room for groups of the given widths, in primID order (the arrays allocated unwritten; fill them after).
+    void assign(const std::vector<Width>& widths);
+
+    std::vector<GaussianSingle, DefaultInitAllocator<GaussianSingle>> singles;
+    std::vector<GaussianQuad, DefaultInitAllocator<GaussianQuad>> quads;
+    std::vector<GaussianGroup, DefaultInitAllocator<GaussianGroup>> wide;
+
+private:
+    struct Block {
+        std::uint64_t wide = 0, quads = 0;  // bit i: primID 64 k + i is of that width
+        std::uint32_t wide_before = 0, quads_before = 0;  // of that width in the blocks before
+    };
+    std::vector<Block> blocks_;
+    std::size_t size_ = 0;
 };
 
 // Deformation blur (Scene::set_gaussians_deformation): a group's lanes (the same Gaussians as its GaussianGroup) at
@@ -87,7 +146,7 @@ struct GaussianChunk {
     std::uint32_t offset = 0, count = 0;  // primitives [offset, offset + count) of the set
     RTCScene scene = nullptr;
     RTCGeometry geometry = nullptr;        // the user geometry inside `scene` (owned by it)
-    std::vector<GaussianGroup, DefaultInitAllocator<GaussianGroup>> groups;  // the geometry's primitives (build_groups)
+    GaussianGroups groups;                 // the geometry's primitives (build_groups)
     std::vector<RTCBounds> group_bounds;   // their Embree bounds
     // With the set's deformation (GaussianSet::deformation): the groups' lanes and their Embree bounds at each time
     // step, [step * groups.size() + group]; empty without.
