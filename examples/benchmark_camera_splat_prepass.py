@@ -3,9 +3,11 @@
 # scene keeping its storage between frames as Persistent Data does. Given two builds of the native module (--b), it
 # renders with each in turn, alternating frame by frame in one process, so that a busy or slowing machine weighs on
 # both alike, and makes the two scenes in one order for half the frames and in the other for the rest; it prints each
-# build's medians, tile-list entries and a hash of the image (equal hashes: the same image bit for bit).
+# build's medians, tile-list entries and a hash of the image (equal hashes: the same image bit for bit). --ground
+# renders instead the scene of examples/benchmark_frame_cost.py (its ground plane, sun and camera, view "f12"), whose
+# plane pixels trace bounce and shadow rays through the Gaussians' BVH.
 #   blender -b --factory-startup --python examples/benchmark_camera_splat_prepass.py -- \
-#       --a addon/raysplats/_native.cpython-311-x86_64-linux-gnu.so [--b OTHER_BUILD.so] [--frames 10]
+#       --a addon/raysplats/_native.cpython-311-x86_64-linux-gnu.so [--b OTHER_BUILD.so] [--frames 10] [--ground]
 import argparse
 import hashlib
 import importlib.machinery
@@ -24,7 +26,8 @@ parser.add_argument("--a", required=True, help="a native module file (_native.cp
 parser.add_argument("--b", help="another build of it to compare with")
 parser.add_argument("--data", default=os.path.join(HERE, "..", "..", "shared", "data"))
 parser.add_argument("--frames", type=int, default=10)
-parser.add_argument("--views", default="far,facing")
+parser.add_argument("--views", default=None, help="far,facing by default; f12 with --ground")
+parser.add_argument("--ground", action="store_true", help="benchmark_frame_cost.py's ground plane, sun and camera")
 args = parser.parse_args(argv)
 
 
@@ -53,6 +56,15 @@ VIEWS = {  # the showroom GUI test's F12 camera (the whole scene, far), and the 
     "facing": {"matrix": facing, "type": "PERSP", "lens": 30.0, "sensor_width": 36.0, "sensor_fit": "HORIZONTAL",
                "clip_start": 0.01, "clip_end": 1e4},
 }
+# benchmark_frame_cost.py's scene for showroom_1.5M at frame 1, as it computes it from the imported objects' bounds:
+# the camera, the ground plane (4 times the scene's extent, at its 5th percentile height) and the sun.
+VIEWS["f12"] = {"matrix": np.array([[1, 0, 0, 31.262278], [0, 0.31622761, -0.9486835, -159.82001],
+                                    [0, 0.9486835, 0.31622761, 57.103889], [0, 0, 0, 1]], np.float32),
+                "type": "PERSP", "lens": 50.0, "sensor_width": 36.0, "clip_start": 0.1, "clip_end": 1000.0}
+GROUND = np.array([[-216.09746, -258.76392, -4.500102], [278.62201, -258.76392, -4.500102],
+                   [-216.09746, 235.95557, -4.500102], [278.62201, 235.95557, -4.500102]], np.float32)
+SUN = np.array([[0.68281895, -0.51390493, 0.51928794, 0], [0.70305675, 0.65548778, -0.27576613, 0],
+                [-0.19866933, 0.55338722, 0.80888385, 0], [0, 0, 0, 1]], np.float32)
 SETTINGS = {"width": 640, "height": 360, "samples": 1, "compositing": "SORTED", "seed": 0,
             "pixel_filter": "BLACKMAN_HARRIS", "filter_width": 1.5, "camera_ray_splatting": True}
 
@@ -65,6 +77,9 @@ def make_scenes(order):
         module = builds[name]
         scene = module.RenderScene()
         scene.add_gaussians(cloud["positions"], cloud["rotations"], cloud["scales"], cloud["opacities"], cloud["sh"])
+        if args.ground:
+            scene.add_mesh(GROUND, np.array([[0, 1, 3], [0, 3, 2]], np.uint32), material=scene.add_material())
+            scene.add_light("SUN", [1, 1, 1], 10.0, SUN, sun_angle=0.00918)
         scene.set_keep_frame_buffers(True)
         module.RenderJob(scene, VIEWS["far"], dict(SETTINGS, width=64, height=36)).result()  # (the BVH built)
         made[name] = (module, scene)
@@ -73,7 +88,7 @@ def make_scenes(order):
 
 print(f"showroom_1.5M, 640 x 360, 1 sample, median of {args.frames} frames, CPU s, load {os.getloadavg()[0]:.2f}")
 names = sorted(builds)
-views = args.views.split(",")
+views = (args.views or ("f12" if args.ground else "far,facing")).split(",")
 figures = {(view, name): [] for view in views for name in names}
 result = {}
 for half in (0, 1):
