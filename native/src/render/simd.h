@@ -54,24 +54,9 @@ struct Avx2 {
 };
 
 // Four lanes with FMA: the AVX2 path's operations on a group of at most four Gaussians, lane for lane the same
-// results as Avx2's (the same fused and rounded operations and comparison predicates).
-struct Fma4 {
-    using V = __m128;
-    static constexpr int W = 4;
-    __attribute__((target("avx2,fma"))) static V load(const float* p) { return _mm_load_ps(p); }
-    __attribute__((target("avx2,fma"))) static V set1(float s) { return _mm_set1_ps(s); }
-    __attribute__((target("avx2,fma"))) static V add(V a, V b) { return _mm_add_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V sub(V a, V b) { return _mm_sub_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V mul(V a, V b) { return _mm_mul_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V div(V a, V b) { return _mm_div_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V le(V a, V b) { return _mm_cmp_ps(a, b, _CMP_LE_OQ); }
-    __attribute__((target("avx2,fma"))) static V ne(V a, V b) { return _mm_cmp_ps(a, b, _CMP_NEQ_UQ); }
-    __attribute__((target("avx2,fma"))) static V and_(V a, V b) { return _mm_and_ps(a, b); }
-    __attribute__((target("avx2,fma"))) static V abs(V a) { return _mm_andnot_ps(_mm_set1_ps(-0.0f), a); }
-    __attribute__((target("avx2,fma"))) static V neg(V a) { return _mm_xor_ps(a, _mm_set1_ps(-0.0f)); }
+// results as Avx2's (madd fused; everything else is Sse's, the same IEEE operations and comparison predicates).
+struct Fma4 : Sse {
     __attribute__((target("avx2,fma"))) static V madd(V a, V b, V c) { return _mm_fmadd_ps(a, b, c); }
-    __attribute__((target("avx2,fma"))) static unsigned bits(V m) { return unsigned(_mm_movemask_ps(m)); }
-    __attribute__((target("avx2,fma"))) static void store(float* p, V a) { _mm_store_ps(p, a); }
 };
 
 // The policy for groups of at most four lanes on a path: Fma4 on the AVX2 path, Sse on the SSE path.
