@@ -287,7 +287,9 @@ void recover_face(const RecoveryJob& job, std::size_t o, FaceScratch& scratch, R
     const RestFace rest = rest_of_face(job.attr, job.options.polygon.radius, f, counts);
     const bool exact_rest = matches_rest_polygon(job, f, rest, scratch.rest_polygon);
     FaceGaussian g;
-    if (exact_rest)
+    if (exact_rest && job.map.identity)
+        g.center = Vec3(rest.center[0], rest.center[1], rest.center[2]);  // (written as stored: only the centre moves)
+    else if (exact_rest)
         g = rest_gaussian(rest);
     else if (!polygon::gaussian_of_polygon(v, count, rest.rho, rest.thickness, g))
         ++counts.degenerate;
