@@ -140,7 +140,6 @@ struct RestFace {
     const float* rotation = nullptr;
     const float* scales = nullptr;
     bool is_added = false;            // a face the user added: default attributes
-    double thickness = 0.0;
     float rho = 0.0f;                 // rho_i, which the moments are divided by
     bool usable_rotation = false, usable_scales = false;
 };
@@ -156,9 +155,6 @@ RestFace rest_of_face(const SplatFaceAttributesView& attr, float object_rho, std
     // Without rest attributes every face is taken as a Gaussian; with them, zero rest scales (the value Blender gives
     // new faces) mark a face the user added.
     rest.is_added = rest_s && rest_s[0] == 0 && rest_s[1] == 0 && rest_s[2] == 0;
-    // The stored thickness, else (current imports store none) the one of the face's rest scales.
-    rest.thickness = rest.is_added ? 0.0
-        : attr.thickness ? double(attr.thickness[f]) : rest_s ? double(gaussian_thickness(rest_s)) : 0.0;
     // The face's own rho_i (design.md §5); the object's rho where the face has none (0: added by the user).
     rest.rho = object_rho;
     if (attr.polygon_radius && attr.polygon_radius[f] > 0.0f && std::isfinite(attr.polygon_radius[f]))
@@ -179,6 +175,13 @@ RestFace rest_of_face(const SplatFaceAttributesView& attr, float object_rho, std
         if (!rest.usable_scales) ++counts.invalid_rest_scale;
     }
     return rest;
+}
+
+// The thickness of an edited face's Gaussian: the stored one, else (current imports store none) the one of the face's
+// rest scales; 0 for a face the user added.
+double face_thickness(const SplatFaceAttributesView& attr, std::size_t f, const RestFace& rest) {
+    if (rest.is_added) return 0.0;
+    return attr.thickness ? double(attr.thickness[f]) : rest.scales ? double(gaussian_thickness(rest.scales)) : 0.0;
 }
 
 // True where face f is unedited: its corners are bit for bit the polygon of its rest Gaussian (rebuilt in
@@ -291,7 +294,7 @@ void recover_face(const RecoveryJob& job, std::size_t o, FaceScratch& scratch, R
         g.center = Vec3(rest.center[0], rest.center[1], rest.center[2]);  // (written as stored: only the centre moves)
     else if (exact_rest)
         g = rest_gaussian(rest);
-    else if (!polygon::gaussian_of_polygon(v, count, rest.rho, rest.thickness, g))
+    else if (!polygon::gaussian_of_polygon(v, count, rest.rho, face_thickness(job.attr, f, rest), g))
         ++counts.degenerate;
     if (!write_face_gaussian(job, o, rest, exact_rest, g)) {
         job.keep[o] = 0;
