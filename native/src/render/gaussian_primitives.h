@@ -213,7 +213,8 @@ struct GaussianSet {
     // After prepare() changed the chunk's primitives: regroups them and commits the geometry (its BVH is rebuilt
     // when the chunk's scene is committed).
     void update_geometry(GaussianChunk& chunk) const;
-    // Groups the chunk's primitives (GaussianGroup) and computes their bounds.
+    // Groups the chunk's primitives (GaussianGroups: each group in the fewest lanes that hold it, all eight with
+    // deformation) and computes their bounds.
     void build_groups(GaussianChunk& chunk) const;
     // After build_groups: the chunk's DeformedLanes and bounds at each step of `deformation` (cleared without).
     void build_deformation(GaussianChunk& chunk) const;
