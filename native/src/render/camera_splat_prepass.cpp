@@ -407,7 +407,8 @@ void CameraSplatPrepass::gather(const std::vector<std::size_t>& set_base, const 
     size_for_overwrite(b_.sources, keys.size());
     constexpr std::size_t kAhead = 16;
     const std::size_t sets = set_base.size() - 1;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    using Range = tbb::blocked_range<std::size_t>;
+    tbb::parallel_for(Range(0, keys.size(), 4096), [&](const Range& r) {
         if (is_cancelled(cancel)) return;
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             if (i + kAhead < r.end()) __builtin_prefetch(&projected[keys[i + kAhead] & 0xffffffffu]);

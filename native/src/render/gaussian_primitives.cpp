@@ -280,20 +280,15 @@ void GaussianSet::build_groups(GaussianChunk& chunk) const {
             g.cloud_index[lane] = p.cloud_index;
         }
         g.first = s.first;
+        if constexpr (lanes > 1) g.count = s.count;  // (a group of one lane has no room for its count, which is 1)
     };
     tbb::parallel_for(std::uint32_t(0), blocks, [&](std::uint32_t b) {
         for (std::size_t k = 0; k < specs[b].size(); ++k) {
             const Spec& s = specs[b][k];
             const GaussianGroups::Location at = chunk.groups.locate(std::uint32_t(base[b] + k));
-            if (at.width == GaussianGroups::Width::Eight) {
-                fill(chunk.groups.wide[at.index], s);
-                chunk.groups.wide[at.index].count = s.count;
-            } else if (at.width == GaussianGroups::Width::Four) {
-                fill(chunk.groups.quads[at.index], s);
-                chunk.groups.quads[at.index].count = s.count;
-            } else {
-                fill(chunk.groups.singles[at.index], s);
-            }
+            if (at.width == GaussianGroups::Width::Eight) fill(chunk.groups.wide[at.index], s);
+            else if (at.width == GaussianGroups::Width::Four) fill(chunk.groups.quads[at.index], s);
+            else fill(chunk.groups.singles[at.index], s);
             RTCBounds& bb = chunk.group_bounds[base[b] + k];
             bb = RTCBounds{};
             bb.lower_x = s.lower.x;

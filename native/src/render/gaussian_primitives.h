@@ -88,10 +88,10 @@ using GaussianSingle = GaussianLanes<1>;
 static_assert(sizeof(GaussianSingle) == 64, "one cache line");
 
 // A chunk's groups, each stored in the narrowest of three widths that holds it: most groups of a real scene hold one
-// Gaussian or a few (on showroom_1.5M 46 % hold one and 17 % two to four), and eight lanes for each made the groups
-// the largest array of a scene (showroom_1.5M: 203 MB in eight lanes, 104 MB in three widths). The primIDs stay the groups' order (the BVH and the order in which a ray meets the
-// Gaussians do not depend on the widths); a primID is found in its width's array by rank: per 64 primIDs, the
-// masks of the wide and the four-lane groups among them and the number of each before them.
+// Gaussian or a few, and eight lanes for each made the groups a scene's largest array (docs/benchmarks.md has the
+// figures). The primIDs stay the groups' order (the BVH and the order in which a ray meets the Gaussians do not depend
+// on the widths); a primID is found in its width's array by rank: per 64 primIDs, the masks of the wide and the
+// four-lane groups among them and the number of each before them.
 class GaussianGroups {
 public:
     enum class Width : std::uint8_t { One, Four, Eight };
